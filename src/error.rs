@@ -1,0 +1,195 @@
+//! The one error type of kinserve. Every layer returns it; the REST adapter maps
+//! it to problem+json (`api::rest::problem`) and the gRPC adapter to a status
+//! (`api::grpc::status`), each in one exhaustive `match`.
+
+use std::fmt;
+
+/// A rule broken by one field of the input, e.g. `links[3].alpha` or
+/// `configurations[17][2]`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FieldViolation {
+    /// Path of the offending field (`links[3].alpha`, `joints[2]`, `name`).
+    pub field: String,
+    /// What is wrong with it, in plain words.
+    pub message: String,
+}
+
+impl FieldViolation {
+    /// A violation of `field` described by `message`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The same violation with `prefix` put in front of its field path
+    /// (`configurations[3]` + `[2]` → `configurations[3][2]`; `model` + `name` → `model.name`).
+    pub fn prefixed(mut self, prefix: &str) -> Self {
+        if prefix.is_empty() {
+            return self;
+        }
+        self.field = if self.field.is_empty() {
+            prefix.to_string()
+        } else if self.field.starts_with('[') {
+            format!("{prefix}{}", self.field)
+        } else {
+            format!("{prefix}.{}", self.field)
+        };
+        self
+    }
+}
+
+impl fmt::Display for FieldViolation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.field.is_empty() {
+            write!(f, "{}", self.message)
+        } else {
+            write!(f, "{}: {}", self.field, self.message)
+        }
+    }
+}
+
+/// Everything that can go wrong in kinserve, by what the client should do about it.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The input could not be read at all: not JSON, truncated, wrong types,
+    /// unknown fields (HTTP 400, gRPC INVALID_ARGUMENT).
+    #[error("malformed input: {detail}")]
+    Malformed {
+        /// Summary for humans.
+        detail: String,
+        /// Field-level details, when the fault can be placed.
+        violations: Vec<FieldViolation>,
+    },
+    /// Well-formed input that breaks a rule: invalid DH model, wrong joint
+    /// count, value out of limits (HTTP 422, gRPC INVALID_ARGUMENT).
+    #[error("invalid input: {detail}")]
+    Invalid {
+        /// Summary for humans.
+        detail: String,
+        /// One entry per offending field.
+        violations: Vec<FieldViolation>,
+    },
+    /// No robot of that name (HTTP 404, gRPC NOT_FOUND).
+    #[error("robot '{name}' not found")]
+    NotFound {
+        /// The robot name asked for.
+        name: String,
+    },
+    /// A robot of that name exists already (HTTP 409, gRPC ALREADY_EXISTS).
+    #[error("robot '{name}' already exists")]
+    AlreadyExists {
+        /// The name that is taken.
+        name: String,
+    },
+    /// Built-in robots cannot be replaced or deleted (HTTP 409, gRPC FAILED_PRECONDITION).
+    #[error("robot '{name}' is built in and read-only")]
+    ReadOnly {
+        /// The built-in robot's name.
+        name: String,
+    },
+    /// Missing or wrong bearer token (HTTP 401, gRPC UNAUTHENTICATED).
+    #[error("missing or invalid bearer token")]
+    Unauthenticated,
+    /// A body, batch or message over its configured limit (HTTP 413, gRPC RESOURCE_EXHAUSTED).
+    #[error("too large: {detail}")]
+    TooLarge {
+        /// Which limit was exceeded and its value.
+        detail: String,
+        /// The field at fault, if any (e.g. `configurations`).
+        field: Option<String>,
+    },
+    /// The request body is not JSON (HTTP 415, gRPC INVALID_ARGUMENT).
+    #[error("unsupported media type: {detail}")]
+    UnsupportedMediaType {
+        /// What was sent and what is accepted.
+        detail: String,
+    },
+    /// Too many requests in flight; retry later (HTTP 503 + Retry-After, gRPC RESOURCE_EXHAUSTED).
+    #[error("server overloaded, retry later")]
+    Overloaded,
+    /// The server is starting or shutting down (HTTP 503, gRPC UNAVAILABLE).
+    #[error("service unavailable: {detail}")]
+    Unavailable {
+        /// Why.
+        detail: String,
+    },
+    /// The model store could not persist or remove a robot, e.g. disk full or
+    /// read-only data directory; nothing was changed (HTTP 507, gRPC UNAVAILABLE).
+    #[error("storage failure: {detail}")]
+    Storage {
+        /// What failed (no secrets, no absolute paths of the host beyond the data dir).
+        detail: String,
+    },
+    /// A bug: a panic caught in a handler (HTTP 500, gRPC INTERNAL).
+    #[error("internal error: {detail}")]
+    Internal {
+        /// Short description.
+        detail: String,
+    },
+}
+
+impl Error {
+    /// An [`Error::Invalid`] with a single field violation.
+    pub fn invalid_field(field: impl Into<String>, message: impl Into<String>) -> Self {
+        let v = FieldViolation::new(field, message);
+        Error::Invalid {
+            detail: v.to_string(),
+            violations: vec![v],
+        }
+    }
+
+    /// An [`Error::Invalid`] from a list of violations (summary: the first one, and a count).
+    pub fn invalid(violations: Vec<FieldViolation>) -> Self {
+        let detail = summary(&violations);
+        Error::Invalid { detail, violations }
+    }
+
+    /// An [`Error::Malformed`] with a single field violation.
+    pub fn malformed_field(field: impl Into<String>, message: impl Into<String>) -> Self {
+        let v = FieldViolation::new(field, message);
+        Error::Malformed {
+            detail: v.to_string(),
+            violations: vec![v],
+        }
+    }
+
+    /// Field violations carried by this error (empty for kinds without fields).
+    pub fn violations(&self) -> &[FieldViolation] {
+        match self {
+            Error::Malformed { violations, .. } | Error::Invalid { violations, .. } => violations,
+            _ => &[],
+        }
+    }
+
+    /// The same error with every field path prefixed (see [`FieldViolation::prefixed`]).
+    pub fn prefixed(self, prefix: &str) -> Self {
+        match self {
+            Error::Invalid { violations, .. } => {
+                Error::invalid(violations.into_iter().map(|v| v.prefixed(prefix)).collect())
+            }
+            Error::Malformed { violations, detail } if !violations.is_empty() => {
+                let violations: Vec<_> =
+                    violations.into_iter().map(|v| v.prefixed(prefix)).collect();
+                let _ = detail;
+                Error::Malformed {
+                    detail: summary(&violations),
+                    violations,
+                }
+            }
+            other => other,
+        }
+    }
+}
+
+fn summary(violations: &[FieldViolation]) -> String {
+    match violations {
+        [] => "invalid input".to_string(),
+        [one] => one.to_string(),
+        [first, rest @ ..] => format!("{first} (and {} more)", rest.len()),
+    }
+}
+
+/// Result with kinserve's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

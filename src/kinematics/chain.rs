@@ -1,0 +1,468 @@
+//! A compiled serial chain: DH rows with everything that does not depend on the
+//! joint values precomputed, and the forward-kinematics products over it.
+
+use super::sincos::{POLY_LIMIT, sincos_poly, sincos_slice};
+use super::transform::Transform;
+
+/// Which Denavit–Hartenberg convention a table is written in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Convention {
+    /// Standard (distal): `A_i = Rz(θ_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`.
+    Standard,
+    /// Modified (proximal, Craig): `A_i = Rx(α_{i-1})·Tx(a_{i-1})·Rz(θ_i)·Tz(d_i)`;
+    /// row `i` holds `α_{i-1}, a_{i-1}, θ_i, d_i`.
+    Modified,
+}
+
+/// The kind of joint a DH row describes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum JointKind {
+    /// The joint value (rad) is added to θ.
+    Revolute,
+    /// The joint value (length unit) is added to d.
+    Prismatic,
+    /// No joint variable: a constant frame written as a table row.
+    Fixed,
+}
+
+/// One DH row in internal units: angles in rad, lengths in the model's length unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DhRow {
+    /// Joint kind.
+    pub kind: JointKind,
+    /// Link length `a` (standard: `a_i`; modified: `a_{i-1}`).
+    pub a: f64,
+    /// Link twist `α` in rad (standard: `α_i`; modified: `α_{i-1}`).
+    pub alpha: f64,
+    /// Link offset `d` (the zero position for a prismatic joint).
+    pub d: f64,
+    /// Joint angle `θ` in rad (the zero offset for a revolute joint).
+    pub theta: f64,
+}
+
+/// The homogeneous matrix of one DH link for joint value `q` (rad for revolute,
+/// length unit for prismatic, ignored for fixed), computed plainly with `std`
+/// trigonometry and generic products. This is the reference the fast path is
+/// tested against.
+pub fn link_transform(
+    convention: Convention,
+    kind: JointKind,
+    a: f64,
+    alpha: f64,
+    d: f64,
+    theta: f64,
+    q: f64,
+) -> Transform {
+    let (theta, d) = match kind {
+        JointKind::Revolute => (theta + q, d),
+        JointKind::Prismatic => (theta, d + q),
+        JointKind::Fixed => (theta, d),
+    };
+    match convention {
+        Convention::Standard => {
+            Transform::rot_z(theta)
+                * Transform::translation(0.0, 0.0, d)
+                * Transform::translation(a, 0.0, 0.0)
+                * Transform::rot_x(alpha)
+        }
+        Convention::Modified => {
+            Transform::rot_x(alpha)
+                * Transform::translation(a, 0.0, 0.0)
+                * Transform::rot_z(theta)
+                * Transform::translation(0.0, 0.0, d)
+        }
+    }
+}
+
+/// Per-row constants, computed once.
+#[derive(Clone, Copy, Debug)]
+struct Link {
+    kind: JointKind,
+    a: f64,
+    alpha: f64,
+    d: f64,
+    theta: f64,
+    ca: f64,
+    sa: f64,
+    /// cos/sin of θ for prismatic and fixed rows.
+    ct: f64,
+    st: f64,
+}
+
+/// A validated-elsewhere, compiled kinematic chain.
+///
+/// Build it with [`Chain::new`]; evaluate with [`Chain::forward`] (tool pose),
+/// [`Chain::forward_frames`] (every frame) or [`Chain::forward_batch`].
+/// Joint values: one per movable row in table order; rad for revolute joints
+/// (times the `angle_scale` passed to the evaluators), the model's length unit
+/// for prismatic joints.
+#[derive(Clone, Debug)]
+pub struct Chain {
+    convention: Convention,
+    links: Vec<Link>,
+    /// Index into `links` of each movable row.
+    movable: Vec<usize>,
+    base: Transform,
+    tool: Option<Transform>,
+}
+
+/// Largest chain the stack buffers of the single-pose path hold; longer chains
+/// (allowed only by raising the configured maximum) take the slower std path.
+pub const STACK_JOINTS: usize = 64;
+
+/// Poses evaluated together in the batch path (structure of arrays).
+const LANES: usize = 8;
+
+impl Chain {
+    /// Compiles a chain from its rows, base (world ← frame 0) and tool (flange ← tool tip).
+    pub fn new(
+        convention: Convention,
+        rows: &[DhRow],
+        base: Transform,
+        tool: Option<Transform>,
+    ) -> Chain {
+        let links: Vec<Link> = rows
+            .iter()
+            .map(|r| {
+                let (sa, ca) = r.alpha.sin_cos();
+                let (st, ct) = r.theta.sin_cos();
+                Link {
+                    kind: r.kind,
+                    a: r.a,
+                    alpha: r.alpha,
+                    d: r.d,
+                    theta: r.theta,
+                    ca,
+                    sa,
+                    ct,
+                    st,
+                }
+            })
+            .collect();
+        let movable = rows
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.kind != JointKind::Fixed)
+            .map(|(i, _)| i)
+            .collect();
+        Chain {
+            convention,
+            links,
+            movable,
+            base,
+            tool: tool.filter(|t| *t != Transform::IDENTITY),
+        }
+    }
+
+    /// Number of movable joints.
+    pub fn dof(&self) -> usize {
+        self.movable.len()
+    }
+
+    /// Number of DH rows (movable and fixed).
+    pub fn rows(&self) -> usize {
+        self.links.len()
+    }
+
+    /// The DH convention of the table.
+    pub fn convention(&self) -> Convention {
+        self.convention
+    }
+
+    /// Kind of each movable joint, in order.
+    pub fn joint_kinds(&self) -> impl Iterator<Item = JointKind> + '_ {
+        self.movable.iter().map(|&i| self.links[i].kind)
+    }
+
+    /// Multiplies `t` in place by the link matrix of `l` with the given `cos θ, sin θ, d`.
+    #[inline(always)]
+    fn apply(convention: Convention, t: &mut Transform, l: &Link, ct: f64, st: f64, d: f64) {
+        let r = &mut t.rotation;
+        let p = &mut t.translation;
+        match convention {
+            Convention::Standard => {
+                // A = [[ct, -st*ca,  st*sa, a*ct],
+                //      [st,  ct*ca, -ct*sa, a*st],
+                //      [ 0,     sa,     ca,    d]]
+                for k in 0..3 {
+                    let (r0, r1, r2) = (r[k][0], r[k][1], r[k][2]);
+                    let x = r0 * ct + r1 * st;
+                    let y = r1 * ct - r0 * st;
+                    r[k][0] = x;
+                    r[k][1] = y * l.ca + r2 * l.sa;
+                    r[k][2] = r2 * l.ca - y * l.sa;
+                    p[k] += x * l.a + r2 * d;
+                }
+            }
+            Convention::Modified => {
+                // A = [[   ct,    -st,   0,     a],
+                //      [st*ca,  ct*ca, -sa, -sa*d],
+                //      [st*sa,  ct*sa,  ca,  ca*d]]
+                for k in 0..3 {
+                    let (r0, r1, r2) = (r[k][0], r[k][1], r[k][2]);
+                    let u = r1 * l.ca + r2 * l.sa;
+                    let w = r2 * l.ca - r1 * l.sa;
+                    r[k][0] = r0 * ct + u * st;
+                    r[k][1] = u * ct - r0 * st;
+                    r[k][2] = w;
+                    p[k] += r0 * l.a + w * d;
+                }
+            }
+        }
+    }
+
+    /// `(cos θ, sin θ, d)` of row `l`. For a revolute row `sv, cv` are the sine and
+    /// cosine of `θ0 + q`; for a prismatic row `v` is the joint value `q`.
+    #[inline(always)]
+    fn row_values(l: &Link, v: f64, sv: f64, cv: f64) -> (f64, f64, f64) {
+        match l.kind {
+            JointKind::Revolute => (cv, sv, l.d),
+            JointKind::Prismatic => (l.ct, l.st, l.d + v),
+            JointKind::Fixed => (l.ct, l.st, l.d),
+        }
+    }
+
+    /// World pose of the tool tip, `base · A_1 ⋯ A_n · tool`, for joint values `q`
+    /// (revolute values are multiplied by `angle_scale`, e.g. π/180 for degrees).
+    ///
+    /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
+    /// missing values count as 0 and extra ones are ignored. Allocates nothing.
+    pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
+        let n = self.movable.len();
+        if n > STACK_JOINTS {
+            return self.forward_frames_into(q, angle_scale, &mut |_| {});
+        }
+        let mut qs = [0.0f64; STACK_JOINTS];
+        let mut sq = [0.0f64; STACK_JOINTS];
+        let mut cq = [1.0f64; STACK_JOINTS];
+        for ((dst, &i), src) in qs.iter_mut().zip(&self.movable).zip(q) {
+            let l = &self.links[i];
+            *dst = match l.kind {
+                JointKind::Revolute => l.theta + *src * angle_scale,
+                _ => *src,
+            };
+        }
+        sincos_slice(&qs[..n], &mut sq[..n], &mut cq[..n]);
+        let mut t = self.base;
+        let mut j = 0;
+        for l in &self.links {
+            let (qj, s, c) = if l.kind == JointKind::Fixed {
+                (0.0, 0.0, 1.0)
+            } else {
+                let v = (qs[j], sq[j], cq[j]);
+                j += 1;
+                v
+            };
+            let (ct, st, d) = Self::row_values(l, qj, s, c);
+            Self::apply(self.convention, &mut t, l, ct, st, d);
+        }
+        match &self.tool {
+            Some(tool) => t.compose(tool),
+            None => t,
+        }
+    }
+
+    /// Like [`Chain::forward`], and calls `frame` with `^world T_i` for every frame
+    /// `i = 0..=rows` (0 is the base frame, `rows` the flange) in order.
+    /// Returns the tool pose. Uses `std` trigonometry.
+    pub fn forward_frames_into(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        frame: &mut dyn FnMut(&Transform),
+    ) -> Transform {
+        let mut t = self.base;
+        frame(&t);
+        let mut qi = q.iter();
+        for l in &self.links {
+            let v = match l.kind {
+                JointKind::Fixed => 0.0,
+                JointKind::Revolute => l.theta + qi.next().copied().unwrap_or(0.0) * angle_scale,
+                JointKind::Prismatic => qi.next().copied().unwrap_or(0.0),
+            };
+            let (sv, cv) = v.sin_cos();
+            let (ct, st, d) = Self::row_values(l, v, sv, cv);
+            Self::apply(self.convention, &mut t, l, ct, st, d);
+            frame(&t);
+        }
+        match &self.tool {
+            Some(tool) => t.compose(tool),
+            None => t,
+        }
+    }
+
+    /// Tool pose and every frame (see [`Chain::forward_frames_into`]).
+    pub fn forward_frames(&self, q: &[f64], angle_scale: f64) -> (Transform, Vec<Transform>) {
+        let mut frames = Vec::with_capacity(self.links.len() + 1);
+        let tool = self.forward_frames_into(q, angle_scale, &mut |t| frames.push(*t));
+        (tool, frames)
+    }
+
+    /// The plain reference product `base · A_1 ⋯ A_n · tool` built from
+    /// [`link_transform`] and generic matrix products (slow; for tests and verification).
+    pub fn forward_reference(&self, q: &[f64], angle_scale: f64) -> Transform {
+        let mut t = self.base;
+        let mut qi = q.iter();
+        for l in &self.links {
+            let qj = match l.kind {
+                JointKind::Fixed => 0.0,
+                JointKind::Revolute => qi.next().copied().unwrap_or(0.0) * angle_scale,
+                JointKind::Prismatic => qi.next().copied().unwrap_or(0.0),
+            };
+            t = t * link_transform(self.convention, l.kind, l.a, l.alpha, l.d, l.theta, qj);
+        }
+        match &self.tool {
+            Some(tool) => t * *tool,
+            None => t,
+        }
+    }
+
+    /// Tool poses for many configurations at once. `q` holds the configurations
+    /// back to back (`dof` values each; a trailing partial configuration is
+    /// ignored), and `out` receives one pose per configuration (up to its length).
+    /// Structure-of-arrays over groups of 8 poses, vectorised with AVX2/FMA when
+    /// the CPU has them. Allocates nothing.
+    pub fn forward_batch(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if super::sincos::simd_available() {
+                // SAFETY: the CPU supports avx2 and fma (checked just above).
+                unsafe { self.forward_batch_avx2(q, angle_scale, out) };
+                return;
+            }
+        }
+        self.forward_batch_generic(q, angle_scale, out)
+    }
+
+    /// Portable path of [`Chain::forward_batch`] (no SIMD dispatch).
+    pub fn forward_batch_portable(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
+        self.forward_batch_generic(q, angle_scale, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn forward_batch_avx2(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
+        self.forward_batch_generic(q, angle_scale, out)
+    }
+
+    #[inline(always)]
+    fn forward_batch_generic(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
+        let dof = self.movable.len();
+        if dof == 0 {
+            return;
+        }
+        if dof > STACK_JOINTS {
+            for (cfg, o) in q.chunks_exact(dof).zip(out.iter_mut()) {
+                *o = self.forward(cfg, angle_scale);
+            }
+            return;
+        }
+        let count = (q.len() / dof).min(out.len());
+        let mut start = 0;
+        while start < count {
+            let lanes = (count - start).min(LANES);
+            if lanes < LANES {
+                for k in 0..lanes {
+                    let i = start + k;
+                    out[i] = self.forward(&q[i * dof..(i + 1) * dof], angle_scale);
+                }
+                break;
+            }
+            self.batch_block(
+                &q[start * dof..(start + LANES) * dof],
+                angle_scale,
+                dof,
+                &mut out[start..start + LANES],
+            );
+            start += LANES;
+        }
+    }
+
+    /// Eight poses in structure-of-arrays form: every scalar of the pose is a
+    /// `[f64; 8]` so each step of the DH product is one vector operation.
+    #[inline(always)]
+    fn batch_block(&self, q: &[f64], angle_scale: f64, dof: usize, out: &mut [Transform]) {
+        type V = [f64; LANES];
+        let mut r = [[[0.0f64; LANES]; 3]; 3];
+        let mut p = [[0.0f64; LANES]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                r[i][j] = [self.base.rotation[i][j]; LANES];
+            }
+            p[i] = [self.base.translation[i]; LANES];
+        }
+        let mut j = 0;
+        for l in &self.links {
+            let mut ct: V = [l.ct; LANES];
+            let mut st: V = [l.st; LANES];
+            let mut d: V = [l.d; LANES];
+            match l.kind {
+                JointKind::Fixed => {}
+                JointKind::Revolute => {
+                    let mut needs_std = false;
+                    for k in 0..LANES {
+                        let x = l.theta + q[k * dof + j] * angle_scale;
+                        let (s, c) = sincos_poly(x);
+                        ct[k] = c;
+                        st[k] = s;
+                        needs_std |= x.abs() > POLY_LIMIT || !x.is_finite();
+                    }
+                    if needs_std {
+                        for k in 0..LANES {
+                            let x = l.theta + q[k * dof + j] * angle_scale;
+                            (st[k], ct[k]) = x.sin_cos();
+                        }
+                    }
+                    j += 1;
+                }
+                JointKind::Prismatic => {
+                    for k in 0..LANES {
+                        d[k] = l.d + q[k * dof + j];
+                    }
+                    j += 1;
+                }
+            }
+            match self.convention {
+                Convention::Standard => {
+                    for row in 0..3 {
+                        for k in 0..LANES {
+                            let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
+                            let x = r0 * ct[k] + r1 * st[k];
+                            let y = r1 * ct[k] - r0 * st[k];
+                            r[row][0][k] = x;
+                            r[row][1][k] = y * l.ca + r2 * l.sa;
+                            r[row][2][k] = r2 * l.ca - y * l.sa;
+                            p[row][k] += x * l.a + r2 * d[k];
+                        }
+                    }
+                }
+                Convention::Modified => {
+                    for row in 0..3 {
+                        for k in 0..LANES {
+                            let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
+                            let u = r1 * l.ca + r2 * l.sa;
+                            let w = r2 * l.ca - r1 * l.sa;
+                            r[row][0][k] = r0 * ct[k] + u * st[k];
+                            r[row][1][k] = u * ct[k] - r0 * st[k];
+                            r[row][2][k] = w;
+                            p[row][k] += r0 * l.a + w * d[k];
+                        }
+                    }
+                }
+            }
+        }
+        for (k, o) in out.iter_mut().enumerate().take(LANES) {
+            let mut t = Transform::IDENTITY;
+            for i in 0..3 {
+                for jj in 0..3 {
+                    t.rotation[i][jj] = r[i][jj][k];
+                }
+                t.translation[i] = p[i][k];
+            }
+            *o = match &self.tool {
+                Some(tool) => t.compose(tool),
+                None => t,
+            };
+        }
+    }
+}

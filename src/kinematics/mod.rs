@@ -1,0 +1,9 @@
+//! Pure forward-kinematics math: rigid transforms, DH link matrices, compiled
+//! chains and vectorised sine/cosine. No serde, no I/O, no async.
+
+mod chain;
+pub mod sincos;
+mod transform;
+
+pub use chain::{Chain, Convention, DhRow, JointKind, STACK_JOINTS, link_transform};
+pub use transform::Transform;

@@ -1,0 +1,2 @@
+//! Core tests: kinematics, model validation, robot files, CLI.
+mod kinematics;
