@@ -77,6 +77,12 @@ pub enum Error {
         /// The robot name asked for.
         name: String,
     },
+    /// No such route or method (HTTP 404, gRPC UNIMPLEMENTED).
+    #[error("no route for '{path}'")]
+    NoRoute {
+        /// The path asked for (cut to 200 characters).
+        path: String,
+    },
     /// A robot of that name exists already (HTTP 409, gRPC ALREADY_EXISTS).
     #[error("robot '{name}' already exists")]
     AlreadyExists {

@@ -3,8 +3,16 @@
 //!
 //! Dependencies point one way: `api` → `service` → `registry` → `model` → `kinematics`.
 
+pub mod api;
+pub mod cli;
+pub mod config;
 pub mod error;
 pub mod kinematics;
 pub mod model;
+pub mod registry;
+pub mod service;
+pub mod startup;
+pub mod telemetry;
 
 pub use error::{Error, FieldViolation, Result};
+pub use startup::{App, ShutdownHandle};

@@ -430,11 +430,22 @@ impl Robot {
     }
 
     /// Checks a joint vector: count, finiteness and (if asked) limits.
-    /// Field paths are `joints[i]`; callers prefix them (`configurations[17]`).
+    /// Field paths are `joints[i]`.
     pub fn check_joints(&self, q: &[f64], opts: &FkOptions) -> Result<()> {
+        self.check_joints_at(q, opts, || "joints".to_string())
+    }
+
+    /// Like [`Robot::check_joints`], with the vector's field path given lazily
+    /// (e.g. `configurations[17]`, giving `configurations[17][2]`).
+    pub fn check_joints_at(
+        &self,
+        q: &[f64],
+        opts: &FkOptions,
+        field: impl Fn() -> String,
+    ) -> Result<()> {
         if q.len() != self.joints.len() {
             return Err(Error::invalid_field(
-                "joints",
+                field(),
                 format!(
                     "robot '{}' has {} movable joints, got {} values",
                     self.name(),
@@ -447,7 +458,7 @@ impl Robot {
         for (i, (x, j)) in q.iter().zip(&self.joints).enumerate() {
             if !x.is_finite() {
                 return Err(Error::invalid_field(
-                    format!("joints[{i}]"),
+                    format!("{}[{i}]", field()),
                     "must be a finite number",
                 ));
             }
@@ -466,7 +477,7 @@ impl Robot {
                         _ => (self.spec.length_unit.as_str(), 1.0),
                     };
                     return Err(Error::invalid_field(
-                        format!("joints[{i}]"),
+                        format!("{}[{i}]", field()),
                         format!(
                             "{x} {unit} is outside the limits [{}, {}] {unit} of joint '{}'",
                             lo * k,

@@ -1,0 +1,313 @@
+//! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and reflection.
+
+mod convert;
+pub mod status;
+
+use std::pin::Pin;
+use std::sync::Arc;
+
+use tokio::net::TcpListener;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, watch};
+use tokio_stream::Stream;
+use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
+use tonic::{Request, Response, Status, Streaming};
+
+use crate::config::ServeConfig;
+use crate::error::Error;
+use crate::registry::PutMode;
+use crate::service::{Configurations, Service};
+
+/// Generated protobuf and tonic code for `kinematics.v1`.
+#[allow(missing_docs, clippy::all)]
+pub mod pb {
+    tonic::include_proto!("kinematics.v1");
+    /// Encoded file descriptor set (for reflection).
+    pub const FILE_DESCRIPTOR_SET: &[u8] =
+        tonic::include_file_descriptor_set!("kinematics_descriptor");
+}
+
+use pb::kinematics_service_server::{KinematicsService, KinematicsServiceServer};
+
+/// Stream responses buffered per stream before the server stops reading (flow control).
+const STREAM_BUFFER: usize = 16;
+
+/// The gRPC service over the shared [`Service`].
+#[derive(Clone)]
+pub struct GrpcService {
+    service: Arc<Service>,
+    config: Arc<ServeConfig>,
+    permits: Arc<Semaphore>,
+    shutdown: watch::Receiver<bool>,
+}
+
+fn bearer<T>(req: &Request<T>) -> Option<&str> {
+    let v = req.metadata().get("authorization")?.to_str().ok()?;
+    let (scheme, token) = v.split_once(' ')?;
+    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+}
+
+impl GrpcService {
+    fn admit(&self) -> Result<OwnedSemaphorePermit, Status> {
+        self.permits.clone().try_acquire_owned().map_err(|_| {
+            metrics::counter!("kinserve_grpc_rejected_total", "reason" => "overloaded")
+                .increment(1);
+            Status::from(Error::Overloaded)
+        })
+    }
+
+    fn fk_one(
+        &self,
+        robot: &str,
+        joints: &[f64],
+        options: Option<&pb::FkOptions>,
+    ) -> Result<(pb::Pose, Vec<pb::Pose>, pb::LengthUnit), Error> {
+        let entry = self.service.robot(robot)?;
+        let (opts, frames) = convert::options_from_pb(options)?;
+        let unit = convert::length_unit_to_pb(entry.robot.length_unit());
+        if frames {
+            let (t, fr) = self.service.fk_frames(&entry.robot, joints, &opts)?;
+            Ok((
+                convert::pose_to_pb(&t),
+                fr.iter().map(convert::pose_to_pb).collect(),
+                unit,
+            ))
+        } else {
+            let t = self.service.fk(&entry.robot, joints, &opts)?;
+            Ok((convert::pose_to_pb(&t), Vec::new(), unit))
+        }
+    }
+}
+
+type FkStream = Pin<
+    Box<dyn Stream<Item = Result<pb::StreamForwardKinematicsResponse, Status>> + Send + 'static>,
+>;
+
+#[tonic::async_trait]
+impl KinematicsService for GrpcService {
+    async fn list_robots(
+        &self,
+        _req: Request<pb::ListRobotsRequest>,
+    ) -> Result<Response<pb::ListRobotsResponse>, Status> {
+        let _permit = self.admit()?;
+        let robots = self
+            .service
+            .list()
+            .into_iter()
+            .map(|s| pb::RobotSummary {
+                name: s.name,
+                dof: s.dof as u32,
+                convention: convert::convention_to_pb(s.convention) as i32,
+                length_unit: convert::length_unit_to_pb(s.length_unit) as i32,
+                source: convert::origin_to_pb(s.origin) as i32,
+            })
+            .collect();
+        Ok(Response::new(pb::ListRobotsResponse { robots }))
+    }
+
+    async fn get_robot(
+        &self,
+        req: Request<pb::GetRobotRequest>,
+    ) -> Result<Response<pb::GetRobotResponse>, Status> {
+        let _permit = self.admit()?;
+        let entry = self.service.robot(&req.get_ref().name)?;
+        Ok(Response::new(pb::GetRobotResponse {
+            robot: Some(convert::robot_to_pb(entry.robot.spec())),
+            source: convert::origin_to_pb(entry.origin) as i32,
+        }))
+    }
+
+    async fn register_robot(
+        &self,
+        req: Request<pb::RegisterRobotRequest>,
+    ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
+        self.service.authorize(bearer(&req))?;
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let robot = req
+            .robot
+            .ok_or_else(|| Error::invalid_field("robot", "is required"))?;
+        let spec = convert::robot_from_pb(robot)?;
+        let name = spec.name.clone();
+        let mode = if req.replace {
+            PutMode::Upsert
+        } else {
+            PutMode::Create
+        };
+        let created = self.service.register(spec, mode).await?;
+        let entry = self.service.robot(&name)?;
+        Ok(Response::new(pb::RegisterRobotResponse {
+            robot: Some(convert::robot_to_pb(entry.robot.spec())),
+            created,
+        }))
+    }
+
+    async fn delete_robot(
+        &self,
+        req: Request<pb::DeleteRobotRequest>,
+    ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
+        self.service.authorize(bearer(&req))?;
+        let _permit = self.admit()?;
+        self.service.delete(&req.get_ref().name).await?;
+        Ok(Response::new(pb::DeleteRobotResponse {}))
+    }
+
+    async fn forward_kinematics(
+        &self,
+        req: Request<pb::ForwardKinematicsRequest>,
+    ) -> Result<Response<pb::ForwardKinematicsResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let (pose, frames, unit) = self.fk_one(&req.robot, &req.joints, req.options.as_ref())?;
+        Ok(Response::new(pb::ForwardKinematicsResponse {
+            robot: req.robot,
+            length_unit: unit as i32,
+            pose: Some(pose),
+            frames,
+        }))
+    }
+
+    async fn forward_kinematics_batch(
+        &self,
+        req: Request<pb::ForwardKinematicsBatchRequest>,
+    ) -> Result<Response<pb::ForwardKinematicsBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        self.service.check_batch_size(req.configurations.len())?;
+        let entry = self.service.robot(&req.robot)?;
+        let (opts, _) = convert::options_from_pb(req.options.as_ref())?;
+        let mut configs = Configurations {
+            values: Vec::with_capacity(req.configurations.len() * entry.robot.dof()),
+            lens: Vec::with_capacity(req.configurations.len()),
+        };
+        for c in &req.configurations {
+            configs.push(&c.joints);
+        }
+        let poses = self.service.fk_batch(&entry.robot, &configs, &opts)?;
+        Ok(Response::new(pb::ForwardKinematicsBatchResponse {
+            robot: req.robot,
+            length_unit: convert::length_unit_to_pb(entry.robot.length_unit()) as i32,
+            poses: poses.iter().map(convert::pose_to_pb).collect(),
+        }))
+    }
+
+    type StreamForwardKinematicsStream = FkStream;
+
+    async fn stream_forward_kinematics(
+        &self,
+        req: Request<Streaming<pb::StreamForwardKinematicsRequest>>,
+    ) -> Result<Response<Self::StreamForwardKinematicsStream>, Status> {
+        let permit = self.admit()?;
+        let mut inbound = req.into_inner();
+        let (tx, rx) = mpsc::channel(STREAM_BUFFER);
+        let this = self.clone();
+        let idle = self.config.stream_idle_timeout;
+        let mut shutdown = self.shutdown.clone();
+        tokio::spawn(async move {
+            let _permit = permit;
+            loop {
+                let next = tokio::select! {
+                    _ = crate::startup::shutdown_started(&mut shutdown) => {
+                        let _ = tx.send(Err(Status::unavailable("server shutting down"))).await;
+                        return;
+                    }
+                    _ = tx.closed() => return, // client cancelled
+                    r = tokio::time::timeout(idle, inbound.message()) => r,
+                };
+                let msg = match next {
+                    Err(_) => {
+                        let _ = tx
+                            .send(Err(Status::deadline_exceeded("stream idle timeout")))
+                            .await;
+                        return;
+                    }
+                    Ok(Ok(Some(m))) => m,
+                    Ok(Ok(None)) => return,
+                    Ok(Err(status)) => {
+                        // Undecodable or oversized message: report it and end (the transport state is unknown).
+                        let _ = tx.send(Err(status)).await;
+                        return;
+                    }
+                };
+                let resp = match this.fk_one(&msg.robot, &msg.joints, msg.options.as_ref()) {
+                    Ok((pose, frames, unit)) => pb::StreamForwardKinematicsResponse {
+                        id: msg.id,
+                        result: Some(pb::stream_forward_kinematics_response::Result::Pose(pose)),
+                        length_unit: unit as i32,
+                        frames,
+                    },
+                    Err(e) => pb::StreamForwardKinematicsResponse {
+                        id: msg.id,
+                        result: Some(pb::stream_forward_kinematics_response::Result::Error(
+                            status::to_rpc_status(&e),
+                        )),
+                        length_unit: 0,
+                        frames: Vec::new(),
+                    },
+                };
+                // Waits while the client reads slowly: bounded buffering, end-to-end flow control.
+                if tx.send(Ok(resp)).await.is_err() {
+                    return;
+                }
+            }
+        });
+        Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+    }
+}
+
+/// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` turns true.
+pub async fn serve(
+    listener: TcpListener,
+    service: Arc<Service>,
+    config: Arc<ServeConfig>,
+    permits: Arc<Semaphore>,
+    shutdown: watch::Receiver<bool>,
+) -> std::io::Result<()> {
+    let (health, health_service) = tonic_health::server::health_reporter();
+    health
+        .set_serving::<KinematicsServiceServer<GrpcService>>()
+        .await;
+    health
+        .set_service_status("", tonic_health::ServingStatus::Serving)
+        .await;
+    let descriptors = [
+        pb::FILE_DESCRIPTOR_SET,
+        tonic_health::pb::FILE_DESCRIPTOR_SET,
+    ];
+    let mut v1 = tonic_reflection::server::Builder::configure();
+    let mut v1alpha = tonic_reflection::server::Builder::configure();
+    for d in descriptors {
+        v1 = v1.register_encoded_file_descriptor_set(d);
+        v1alpha = v1alpha.register_encoded_file_descriptor_set(d);
+    }
+    let reflection_v1 = v1.build_v1().map_err(std::io::Error::other)?;
+    let reflection_v1alpha = v1alpha.build_v1alpha().map_err(std::io::Error::other)?;
+    let max_message = config.max_batch_body_bytes;
+    let kin = KinematicsServiceServer::new(GrpcService {
+        service,
+        config: config.clone(),
+        permits,
+        shutdown: shutdown.clone(),
+    })
+    .max_decoding_message_size(max_message)
+    .max_encoding_message_size(usize::MAX);
+    let mut shutdown_rx = shutdown;
+    let health_on_stop = health.clone();
+    tonic::transport::Server::builder()
+        .timeout(config.request_timeout)
+        .http2_keepalive_interval(Some(std::time::Duration::from_secs(30)))
+        .add_service(kin)
+        .add_service(health_service)
+        .add_service(reflection_v1)
+        .add_service(reflection_v1alpha)
+        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async move {
+            let _ = shutdown_rx.wait_for(|s| *s).await;
+            health_on_stop
+                .set_not_serving::<KinematicsServiceServer<GrpcService>>()
+                .await;
+            health_on_stop
+                .set_service_status("", tonic_health::ServingStatus::NotServing)
+                .await;
+        })
+        .await
+        .map_err(std::io::Error::other)
+}

@@ -1,0 +1,209 @@
+//! REST request and response bodies.
+
+use std::fmt;
+
+use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
+use serde::ser::SerializeSeq;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use utoipa::ToSchema;
+
+use crate::kinematics::Transform;
+use crate::model::{AngleUnit, ConventionSpec, FkOptions, LengthUnit, Pose};
+use crate::service::Configurations;
+
+fn default_true() -> bool {
+    true
+}
+
+/// A line of `GET /v1/robots`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+pub struct RobotSummaryDto {
+    /// Robot name.
+    pub name: String,
+    /// Number of movable joints.
+    pub dof: usize,
+    /// DH convention.
+    pub convention: ConventionSpec,
+    /// Length unit of its positions.
+    pub length_unit: LengthUnit,
+    /// `builtin` (read-only, from robots/) or `registered` (through the API).
+    #[schema(example = "builtin")]
+    pub source: String,
+}
+
+/// `GET /v1/robots`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+pub struct RobotList {
+    /// Every robot, sorted by name.
+    pub robots: Vec<RobotSummaryDto>,
+}
+
+/// `POST /v1/robots/{name}/fk`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FkRequest {
+    /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
+    pub joints: Vec<f64>,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Also return every intermediate frame (default false).
+    #[serde(default)]
+    pub frames: bool,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+}
+
+impl FkRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions {
+            angle_unit: self.angle_unit,
+            check_limits: self.check_limits,
+        }
+    }
+}
+
+/// `POST /v1/robots/{name}/fk/batch`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FkBatchRequest {
+    /// Joint configurations, each like `joints` of a single request.
+    #[schema(value_type = Vec<Vec<f64>>)]
+    pub configurations: Configurations,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+}
+
+impl FkBatchRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions {
+            angle_unit: self.angle_unit,
+            check_limits: self.check_limits,
+        }
+    }
+}
+
+/// `POST /v1/robots/{name}/fk/batch` response.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct FkBatchResponse<'a> {
+    /// Robot name.
+    pub robot: &'a str,
+    /// Length unit of every position.
+    pub length_unit: LengthUnit,
+    /// One pose per configuration, in request order.
+    #[schema(value_type = Vec<Pose>)]
+    pub poses: PosesSer<'a>,
+}
+
+/// Serialises transforms as [`Pose`]s without building them in memory first.
+#[derive(Debug)]
+pub struct PosesSer<'a>(pub &'a [Transform]);
+
+impl Serialize for PosesSer<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut seq = s.serialize_seq(Some(self.0.len()))?;
+        for t in self.0 {
+            seq.serialize_element(&Pose::from(t))?;
+        }
+        seq.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for Configurations {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Outer;
+        impl<'de> Visitor<'de> for Outer {
+            type Value = Configurations;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an array of joint arrays")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Configurations, A::Error> {
+                let mut out = Configurations {
+                    values: Vec::with_capacity(seq.size_hint().unwrap_or(0).min(4096) * 6),
+                    lens: Vec::with_capacity(seq.size_hint().unwrap_or(0).min(4096)),
+                };
+                while let Some(n) = seq.next_element_seed(Row(&mut out.values))? {
+                    out.lens.push(n);
+                }
+                Ok(out)
+            }
+        }
+        struct Row<'a>(&'a mut Vec<f64>);
+        impl<'de> DeserializeSeed<'de> for Row<'_> {
+            type Value = u32;
+            fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<u32, D::Error> {
+                d.deserialize_seq(self)
+            }
+        }
+        impl<'de> Visitor<'de> for Row<'_> {
+            type Value = u32;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an array of joint values")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<u32, A::Error> {
+                let mut n = 0u32;
+                while let Some(x) = seq.next_element::<f64>()? {
+                    self.0.push(x);
+                    n = n
+                        .checked_add(1)
+                        .ok_or_else(|| de::Error::custom("too many values"))?;
+                }
+                Ok(n)
+            }
+        }
+        d.deserialize_seq(Outer)
+    }
+}
+
+/// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the reply.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WsRequest {
+    /// Any JSON value; echoed in the reply.
+    #[serde(default)]
+    pub id: serde_json::Value,
+    /// Joint values (see [`FkRequest::joints`]).
+    pub joints: Vec<f64>,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Also return every intermediate frame (default false).
+    #[serde(default)]
+    pub frames: bool,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+}
+
+/// Just the `id` of a WebSocket message that failed to parse.
+#[derive(Deserialize)]
+pub struct WsIdOnly {
+    /// The client's id, if it could be read.
+    #[serde(default)]
+    pub id: serde_json::Value,
+}
+
+/// A WebSocket reply.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsReply<'a> {
+    /// The request's `id`.
+    #[schema(value_type = Object)]
+    pub id: &'a serde_json::Value,
+    /// The tool pose, on success.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose: Option<Pose>,
+    /// Every frame, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Pose>>)]
+    pub frames: Option<PosesSer<'a>>,
+    /// The problem, on failure.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<super::problem::Problem>,
+}

@@ -1,0 +1,93 @@
+//! Request extractors that turn every client mistake into a kinserve [`Error`]
+//! (so the response is problem+json, never axum's plain-text rejection).
+
+use axum::extract::{FromRequest, FromRequestParts, Path, Request};
+use axum::http::{header, request::Parts};
+use serde::de::DeserializeOwned;
+
+use super::AppState;
+use super::problem::ApiError;
+use crate::error::Error;
+use crate::model::parse_json;
+
+/// A JSON body parsed with field paths. Checks the content type (415), the
+/// body size (413: the batch limit on `/fk/batch`, the body limit elsewhere)
+/// and the JSON (400 / 422).
+pub struct JsonBody<T>(pub T);
+
+impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
+        let content_type = req
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("");
+        let mime = content_type
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        if mime != "application/json"
+            && !(mime.starts_with("application/") && mime.ends_with("+json"))
+        {
+            return Err(Error::UnsupportedMediaType {
+                detail: format!(
+                    "expected Content-Type application/json, got '{}'",
+                    content_type.chars().take(100).collect::<String>()
+                ),
+            }
+            .into());
+        }
+        let limit = if req.uri().path().ends_with("/fk/batch") {
+            state.config.max_batch_body_bytes
+        } else {
+            state.config.max_body_bytes
+        };
+        let bytes = axum::body::to_bytes(req.into_body(), limit)
+            .await
+            .map_err(|e| {
+                let too_large = std::error::Error::source(&e)
+                    .is_some_and(|s| s.is::<http_body_util::LengthLimitError>())
+                    || e.to_string().contains("length limit");
+                if too_large {
+                    Error::TooLarge {
+                        detail: format!("request body is over the limit of {limit} bytes"),
+                        field: None,
+                    }
+                } else {
+                    Error::Malformed {
+                        detail: format!("could not read the request body: {e}"),
+                        violations: Vec::new(),
+                    }
+                }
+            })?;
+        Ok(JsonBody(parse_json(&bytes)?))
+    }
+}
+
+/// The `{name}` path segment of a robot route.
+pub struct RobotName(pub String);
+
+impl FromRequestParts<AppState> for RobotName {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(
+        parts: &mut Parts,
+        state: &AppState,
+    ) -> Result<Self, Self::Rejection> {
+        let Path(name) = Path::<String>::from_request_parts(parts, state)
+            .await
+            .map_err(|e| Error::malformed_field("name", format!("bad robot name in path: {e}")))?;
+        Ok(RobotName(name))
+    }
+}
+
+/// The bearer token of a request, if any.
+pub fn bearer(headers: &axum::http::HeaderMap) -> Option<&str> {
+    let v = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
+    let (scheme, token) = v.split_once(' ')?;
+    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+}

@@ -1,0 +1,233 @@
+//! REST handlers: validate → convert → call the service → convert back.
+
+use axum::Json;
+use axum::extract::State;
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+
+use super::AppState;
+use super::dto::{
+    FkBatchRequest, FkBatchResponse, FkRequest, PosesSer, RobotList, RobotSummaryDto,
+};
+use super::extract::{JsonBody, RobotName};
+use super::problem::{ApiError, Problem};
+use crate::error::Error;
+use crate::model::{FkOutput, Pose, RobotSpec};
+use crate::registry::{Origin, PutMode};
+
+type ApiResult<T> = Result<T, ApiError>;
+
+fn origin_str(o: Origin) -> &'static str {
+    match o {
+        Origin::Builtin => "builtin",
+        Origin::Registered => "registered",
+    }
+}
+
+/// Liveness: 200 while the process runs.
+#[utoipa::path(get, path = "/healthz", tag = "health", responses((status = 200, description = "Alive")))]
+pub async fn healthz() -> &'static str {
+    "ok"
+}
+
+/// Readiness: 200 once robots are loaded, 503 while starting or shutting down.
+#[utoipa::path(get, path = "/readyz", tag = "health", responses(
+    (status = 200, description = "Ready"),
+    (status = 503, description = "Starting or shutting down", body = Problem, content_type = "application/problem+json")))]
+pub async fn readyz(State(state): State<AppState>) -> ApiResult<&'static str> {
+    if state.service.is_ready() {
+        Ok("ready")
+    } else {
+        Err(Error::Unavailable {
+            detail: "starting or shutting down".into(),
+        }
+        .into())
+    }
+}
+
+/// Every robot, sorted by name.
+#[utoipa::path(get, path = "/v1/robots", tag = "robots", responses((status = 200, body = RobotList)))]
+pub async fn list_robots(State(state): State<AppState>) -> Json<RobotList> {
+    let robots = state
+        .service
+        .list()
+        .into_iter()
+        .map(|s| RobotSummaryDto {
+            name: s.name,
+            dof: s.dof,
+            convention: s.convention,
+            length_unit: s.length_unit,
+            source: origin_str(s.origin).to_string(),
+        })
+        .collect();
+    Json(RobotList { robots })
+}
+
+/// One robot's model, in the schema it was registered with.
+#[utoipa::path(get, path = "/v1/robots/{name}", tag = "robots",
+    params(("name" = String, Path, description = "Robot name")),
+    responses((status = 200, body = RobotSpec),
+        (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn get_robot(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+) -> ApiResult<Json<RobotSpec>> {
+    let entry = state.service.robot(&name)?;
+    Ok(Json(entry.robot.spec().clone()))
+}
+
+fn created(name: &str, created: bool, spec: &RobotSpec) -> Response {
+    let status = if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
+    let mut resp = (status, Json(spec)).into_response();
+    if created && let Ok(v) = HeaderValue::from_str(&format!("/v1/robots/{name}")) {
+        resp.headers_mut().insert(header::LOCATION, v);
+    }
+    resp
+}
+
+/// Registers a robot (201 with `Location`; 409 if the name is taken).
+#[utoipa::path(post, path = "/v1/robots", tag = "robots", request_body = RobotSpec,
+    security((), ("bearer" = [])),
+    responses((status = 201, body = RobotSpec, headers(("Location" = String))),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 507, body = Problem, content_type = "application/problem+json")))]
+pub async fn create_robot(
+    State(state): State<AppState>,
+    JsonBody(spec): JsonBody<RobotSpec>,
+) -> ApiResult<Response> {
+    let name = spec.name.clone();
+    state.service.register(spec, PutMode::Create).await?;
+    let entry = state.service.robot(&name)?;
+    Ok(created(&name, true, entry.robot.spec()))
+}
+
+/// Creates (201) or replaces (200) a registered robot; a `name` in the body must match the path.
+#[utoipa::path(put, path = "/v1/robots/{name}", tag = "robots", request_body = RobotSpec,
+    params(("name" = String, Path, description = "Robot name")),
+    security((), ("bearer" = [])),
+    responses((status = 200, body = RobotSpec), (status = 201, body = RobotSpec),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 507, body = Problem, content_type = "application/problem+json")))]
+pub async fn put_robot(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(spec): JsonBody<RobotSpec>,
+) -> ApiResult<Response> {
+    if spec.name != name {
+        return Err(Error::invalid_field(
+            "name",
+            format!(
+                "'{}' does not match the name in the path",
+                spec.name.chars().take(64).collect::<String>()
+            ),
+        )
+        .into());
+    }
+    let was_created = state.service.register(spec, PutMode::Upsert).await?;
+    let entry = state.service.robot(&name)?;
+    Ok(created(&name, was_created, entry.robot.spec()))
+}
+
+/// Deletes a registered robot (204); built-ins are read-only (409).
+#[utoipa::path(delete, path = "/v1/robots/{name}", tag = "robots",
+    params(("name" = String, Path, description = "Robot name")),
+    security((), ("bearer" = [])),
+    responses((status = 204, description = "Deleted"),
+        (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 507, body = Problem, content_type = "application/problem+json")))]
+pub async fn delete_robot(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+) -> ApiResult<StatusCode> {
+    state.service.delete(&name).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Forward kinematics of one configuration.
+#[utoipa::path(post, path = "/v1/robots/{name}/fk", tag = "fk", request_body = FkRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses((status = 200, body = FkOutput),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn fk(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<FkRequest>,
+) -> ApiResult<Json<FkOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let opts = req.options();
+    let (pose, frames) = if req.frames {
+        let (t, frames) = state.service.fk_frames(robot, &req.joints, &opts)?;
+        (t, Some(frames.iter().map(Pose::from).collect()))
+    } else {
+        (state.service.fk(robot, &req.joints, &opts)?, None)
+    };
+    Ok(Json(FkOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        pose: Pose::from(&pose),
+        frames,
+    }))
+}
+
+/// Forward kinematics of many configurations; poses in request order.
+#[utoipa::path(post, path = "/v1/robots/{name}/fk/batch", tag = "fk", request_body = FkBatchRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses((status = 200, body = FkBatchResponse),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json")))]
+pub async fn fk_batch(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<FkBatchRequest>,
+) -> ApiResult<Response> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let poses = state
+        .service
+        .fk_batch(robot, &req.configurations, &req.options())?;
+    let body = FkBatchResponse {
+        robot: robot.name(),
+        length_unit: robot.length_unit(),
+        poses: PosesSer(&poses),
+    };
+    let bytes = serde_json::to_vec(&body).map_err(|e| Error::Internal {
+        detail: e.to_string(),
+    })?;
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        )],
+        bytes,
+    )
+        .into_response())
+}
+
+/// Unknown route: 404 problem.
+pub async fn not_found(uri: axum::http::Uri) -> ApiError {
+    ApiError(Error::NoRoute {
+        path: uri.path().chars().take(200).collect(),
+    })
+}

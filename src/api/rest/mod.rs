@@ -1,0 +1,221 @@
+//! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
+
+mod dto;
+mod extract;
+mod handlers;
+pub mod problem;
+mod ws;
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::Router;
+use axum::extract::{MatchedPath, Request, State};
+use axum::http::{HeaderValue, Method, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use metrics_exporter_prometheus::PrometheusHandle;
+use tokio::sync::{Semaphore, watch};
+use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::cors::{AllowOrigin, Any, CorsLayer};
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::trace::TraceLayer;
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+use utoipa::{Modify, OpenApi};
+use utoipa_swagger_ui::SwaggerUi;
+
+pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
+pub use problem::{ApiError, Problem, ProblemField};
+
+use crate::config::ServeConfig;
+use crate::error::Error;
+use crate::service::Service;
+
+/// What every handler can reach.
+#[derive(Clone)]
+pub struct AppState {
+    /// The shared service.
+    pub service: Arc<Service>,
+    /// Server configuration (limits, timeouts).
+    pub config: Arc<ServeConfig>,
+    /// Becomes `true` when shutdown starts (streams close).
+    pub shutdown: watch::Receiver<bool>,
+    /// Prometheus exposition.
+    pub metrics: PrometheusHandle,
+    /// Admission control: one permit per request in flight.
+    pub permits: Arc<Semaphore>,
+}
+
+struct SecurityAddon;
+
+impl Modify for SecurityAddon {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
+    }
+}
+
+/// The OpenAPI 3.1 document of the REST API.
+#[derive(OpenApi)]
+#[openapi(
+    info(title = "kinserve", description = "Forward kinematics of serial robots (Denavit–Hartenberg tables)."),
+    paths(
+        handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
+        handlers::create_robot, handlers::put_robot, handlers::delete_robot,
+        handlers::fk, handlers::fk_batch, ws::stream, metrics_text
+    ),
+    components(schemas(WsRequest, dto::WsReply)),
+    modifiers(&SecurityAddon)
+)]
+pub struct ApiDoc;
+
+/// Prometheus metrics in text exposition format.
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text", content_type = "text/plain")))]
+async fn metrics_text(State(state): State<AppState>) -> Response {
+    (
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/plain; version=0.0.4"),
+        )],
+        state.metrics.render(),
+    )
+        .into_response()
+}
+
+/// Requires the bearer token on mutating methods (when one is configured).
+async fn require_token(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let mutating = matches!(
+        *req.method(),
+        Method::POST | Method::PUT | Method::DELETE | Method::PATCH
+    );
+    if mutating && let Err(e) = state.service.authorize(extract::bearer(req.headers())) {
+        return ApiError(e).into_response();
+    }
+    next.run(req).await
+}
+
+/// Admission control and request timeout: past the concurrency limit a request
+/// is answered 503 at once instead of queueing; a request over the time limit gets 503.
+async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
+        metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
+        return ApiError(Error::Overloaded).into_response();
+    };
+    match tokio::time::timeout(state.config.request_timeout, next.run(req)).await {
+        Ok(resp) => resp,
+        Err(_) => ApiError(Error::Unavailable {
+            detail: "request timed out".into(),
+        })
+        .into_response(),
+    }
+}
+
+/// Counts requests by route and status and records their latency.
+async fn record_metrics(req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map(|m| m.as_str().to_owned())
+        .unwrap_or_else(|| "unmatched".to_owned());
+    let method = req.method().as_str().to_owned();
+    let resp = next.run(req).await;
+    let status = resp.status().as_u16().to_string();
+    metrics::counter!("kinserve_http_requests_total", "method" => method.clone(), "route" => route.clone(), "status" => status)
+        .increment(1);
+    metrics::histogram!("kinserve_http_request_duration_seconds", "method" => method, "route" => route)
+        .record(start.elapsed().as_secs_f64());
+    resp
+}
+
+fn panic_response(err: Box<dyn std::any::Any + Send + 'static>) -> Response {
+    let detail = err
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| err.downcast_ref::<&str>().copied())
+        .unwrap_or("panic");
+    tracing::error!(panic = detail, "handler panicked");
+    ApiError(Error::Internal {
+        detail: "the handler failed unexpectedly; this is a bug".into(),
+    })
+    .into_response()
+}
+
+fn cors(config: &ServeConfig) -> CorsLayer {
+    let layer = CorsLayer::new()
+        .allow_methods([
+            Method::GET,
+            Method::POST,
+            Method::PUT,
+            Method::DELETE,
+            Method::OPTIONS,
+        ])
+        .allow_headers([
+            header::CONTENT_TYPE,
+            header::AUTHORIZATION,
+            header::HeaderName::from_static("x-request-id"),
+        ])
+        .expose_headers([
+            header::LOCATION,
+            header::HeaderName::from_static("x-request-id"),
+            header::RETRY_AFTER,
+        ]);
+    if config.cors_origins.is_empty() {
+        layer.allow_origin(Any)
+    } else {
+        let origins: Vec<HeaderValue> = config
+            .cors_origins
+            .iter()
+            .filter_map(|o| HeaderValue::from_str(o).ok())
+            .collect();
+        layer.allow_origin(AllowOrigin::list(origins))
+    }
+}
+
+/// The complete REST router.
+pub fn router(state: AppState) -> Router {
+    let admin = Router::new()
+        .route(
+            "/v1/robots",
+            get(handlers::list_robots).post(handlers::create_robot),
+        )
+        .route(
+            "/v1/robots/{name}",
+            get(handlers::get_robot)
+                .put(handlers::put_robot)
+                .delete(handlers::delete_robot),
+        )
+        .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
+    let fk = Router::new()
+        .route("/v1/robots/{name}/fk", axum::routing::post(handlers::fk))
+        .route(
+            "/v1/robots/{name}/fk/batch",
+            axum::routing::post(handlers::fk_batch),
+        )
+        .route("/v1/robots/{name}/fk/stream", get(ws::stream));
+    let api = admin
+        .merge(fk)
+        .route_layer(middleware::from_fn_with_state(state.clone(), admit))
+        .route("/healthz", get(handlers::healthz))
+        .route("/readyz", get(handlers::readyz))
+        .route("/metrics", get(metrics_text));
+    let config = state.config.clone();
+    api.merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
+        .fallback(handlers::not_found)
+        .with_state(state)
+        .layer(middleware::from_fn(record_metrics))
+        .layer(CatchPanicLayer::custom(panic_response))
+        .layer(
+            TraceLayer::new_for_http().make_span_with(|req: &Request| {
+                let id = req.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or("");
+                tracing::debug_span!("http", method = %req.method(), path = %req.uri().path(), request_id = %id)
+            }),
+        )
+        .layer(PropagateRequestIdLayer::x_request_id())
+        .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
+        .layer(cors(&config))
+}

@@ -1,0 +1,164 @@
+//! The one mapping from [`Error`] to HTTP: RFC 9457 `application/problem+json`.
+
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::error::Error;
+
+/// A field-level error inside a problem.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ProblemField {
+    /// Path of the field (`links[3].alpha`, `configurations[17][2]`).
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// RFC 9457 problem details.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Problem {
+    /// Problem type URI (`urn:kinserve:problem:<kind>`).
+    #[serde(rename = "type")]
+    pub type_: String,
+    /// Short summary of the problem type.
+    pub title: String,
+    /// HTTP status code.
+    pub status: u16,
+    /// Explanation of this occurrence.
+    pub detail: String,
+    /// Field-level errors, whenever a field is at fault.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<ProblemField>,
+}
+
+/// Status, problem kind and title of an error. Exhaustive: every error kind has its HTTP meaning here.
+fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
+    match e {
+        Error::Malformed { .. } => (
+            StatusCode::BAD_REQUEST,
+            "malformed-request",
+            "Malformed request",
+        ),
+        Error::Invalid { .. } => (
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-input",
+            "Invalid input",
+        ),
+        Error::NotFound { .. } => (StatusCode::NOT_FOUND, "not-found", "Robot not found"),
+        Error::NoRoute { .. } => (StatusCode::NOT_FOUND, "no-route", "No such route"),
+        Error::AlreadyExists { .. } => (
+            StatusCode::CONFLICT,
+            "already-exists",
+            "Robot already exists",
+        ),
+        Error::ReadOnly { .. } => (
+            StatusCode::CONFLICT,
+            "read-only",
+            "Built-in robot is read-only",
+        ),
+        Error::Unauthenticated => (
+            StatusCode::UNAUTHORIZED,
+            "unauthenticated",
+            "Authentication required",
+        ),
+        Error::TooLarge { .. } => (
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too-large",
+            "Request too large",
+        ),
+        Error::UnsupportedMediaType { .. } => (
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported-media-type",
+            "Unsupported media type",
+        ),
+        Error::Overloaded => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "overloaded",
+            "Server overloaded",
+        ),
+        Error::Unavailable { .. } => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "unavailable",
+            "Service unavailable",
+        ),
+        Error::Storage { .. } => (
+            StatusCode::INSUFFICIENT_STORAGE,
+            "storage",
+            "Storage failure",
+        ),
+        Error::Internal { .. } => (
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "internal",
+            "Internal error",
+        ),
+    }
+}
+
+impl Problem {
+    /// The problem document for an error.
+    pub fn from_error(e: &Error) -> Problem {
+        let (status, kind, title) = classify(e);
+        let mut errors: Vec<ProblemField> = e
+            .violations()
+            .iter()
+            .map(|v| ProblemField {
+                field: v.field.clone(),
+                message: v.message.clone(),
+            })
+            .collect();
+        if let Error::TooLarge {
+            field: Some(f),
+            detail,
+        } = e
+        {
+            errors.push(ProblemField {
+                field: f.clone(),
+                message: detail.clone(),
+            });
+        }
+        Problem {
+            type_: format!("urn:kinserve:problem:{kind}"),
+            title: title.to_string(),
+            status: status.as_u16(),
+            detail: e.to_string(),
+            errors,
+        }
+    }
+}
+
+/// An [`Error`] as an HTTP response.
+#[derive(Debug)]
+pub struct ApiError(pub Error);
+
+impl From<Error> for ApiError {
+    fn from(e: Error) -> Self {
+        ApiError(e)
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let problem = Problem::from_error(&self.0);
+        let status =
+            StatusCode::from_u16(problem.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+        let body = serde_json::to_vec(&problem).unwrap_or_default();
+        let mut resp = (status, body).into_response();
+        let h = resp.headers_mut();
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/problem+json"),
+        );
+        match &self.0 {
+            Error::Unauthenticated => {
+                h.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+            }
+            Error::Overloaded | Error::Unavailable { .. } => {
+                h.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            }
+            _ => {}
+        }
+        resp
+    }
+}

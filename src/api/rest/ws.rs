@@ -1,0 +1,132 @@
+//! `GET /v1/robots/{name}/fk/stream`: FK over a WebSocket, one reply per message, in order.
+
+use axum::extract::State;
+use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
+use axum::response::Response;
+
+use super::AppState;
+use super::dto::{PosesSer, WsIdOnly, WsReply, WsRequest};
+use super::extract::RobotName;
+use super::problem::{ApiError, Problem};
+use crate::error::Error;
+use crate::model::{FkOptions, Pose, parse_json};
+
+/// Close code 1001 "going away" (server shutting down or idle stream).
+const GOING_AWAY: u16 = 1001;
+
+/// Opens the FK stream for a robot. Each text message
+/// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?}` gets exactly one
+/// reply `{"id", "pose", "frames"?}` or `{"id", "error": problem}`, in order.
+#[utoipa::path(get, path = "/v1/robots/{name}/fk/stream", tag = "fk",
+    params(("name" = String, Path, description = "Robot name")),
+    responses((status = 101, description = "WebSocket upgrade; messages are WsRequest, replies WsReply"),
+        (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn stream(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    ws: WebSocketUpgrade,
+) -> Result<Response, ApiError> {
+    state.service.robot(&name)?;
+    let max = state.config.max_body_bytes;
+    Ok(ws
+        .max_message_size(max)
+        .max_frame_size(max)
+        .on_upgrade(move |socket| run(socket, state, name)))
+}
+
+async fn close(socket: &mut WebSocket, reason: &'static str) {
+    let frame = CloseFrame {
+        code: GOING_AWAY,
+        reason: reason.into(),
+    };
+    let _ = socket.send(Message::Close(Some(frame))).await;
+}
+
+async fn run(mut socket: WebSocket, state: AppState, name: String) {
+    let mut shutdown = state.shutdown.clone();
+    let idle = state.config.stream_idle_timeout;
+    loop {
+        let msg = tokio::select! {
+            _ = crate::startup::shutdown_started(&mut shutdown) => {
+                close(&mut socket, "server shutting down").await;
+                return;
+            }
+            r = tokio::time::timeout(idle, socket.recv()) => match r {
+                Err(_) => {
+                    close(&mut socket, "idle timeout").await;
+                    return;
+                }
+                Ok(None) | Ok(Some(Err(_))) => return,
+                Ok(Some(Ok(m))) => m,
+            }
+        };
+        let reply = match msg {
+            Message::Text(t) => answer(&state, &name, t.as_bytes()),
+            Message::Binary(_) => error_reply(
+                &serde_json::Value::Null,
+                &Error::UnsupportedMediaType {
+                    detail: "binary messages are not supported; send JSON text".into(),
+                },
+            ),
+            Message::Ping(_) | Message::Pong(_) => continue,
+            Message::Close(_) => return,
+        };
+        if socket.send(Message::Text(reply.into())).await.is_err() {
+            return;
+        }
+    }
+}
+
+fn error_reply(id: &serde_json::Value, e: &Error) -> String {
+    let reply = WsReply {
+        id,
+        pose: None,
+        frames: None,
+        error: Some(Problem::from_error(e)),
+    };
+    serde_json::to_string(&reply).unwrap_or_default()
+}
+
+/// The reply to one text message.
+fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
+    let req: WsRequest = match parse_json(bytes) {
+        Ok(r) => r,
+        Err(e) => {
+            let id = serde_json::from_slice::<WsIdOnly>(bytes)
+                .map(|x| x.id)
+                .unwrap_or_default();
+            return error_reply(&id, &e);
+        }
+    };
+    let entry = match state.service.robot(name) {
+        Ok(e) => e,
+        Err(e) => return error_reply(&req.id, &e),
+    };
+    let opts = FkOptions {
+        angle_unit: req.angle_unit,
+        check_limits: req.check_limits,
+    };
+    let result = if req.frames {
+        state
+            .service
+            .fk_frames(&entry.robot, &req.joints, &opts)
+            .map(|(t, f)| (t, Some(f)))
+    } else {
+        state
+            .service
+            .fk(&entry.robot, &req.joints, &opts)
+            .map(|t| (t, None))
+    };
+    match result {
+        Ok((t, frames)) => {
+            let reply = WsReply {
+                id: &req.id,
+                pose: Some(Pose::from(&t)),
+                frames: frames.as_deref().map(PosesSer),
+                error: None,
+            };
+            serde_json::to_string(&reply).unwrap_or_default()
+        }
+        Err(e) => error_reply(&req.id, &e),
+    }
+}

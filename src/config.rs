@@ -1,0 +1,223 @@
+//! Command line and configuration: every `serve` flag has a `KINSERVE_*` env twin.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::model::ModelLimits;
+use crate::service::ServiceLimits;
+
+/// kinserve: forward kinematics of serial robots (DH tables) over REST and gRPC.
+#[derive(Debug, Parser)]
+#[command(name = "kinserve", version, about)]
+pub struct Cli {
+    /// What to do (default: serve).
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the server (REST + gRPC).
+    Serve(Box<ServeConfig>),
+    /// Check robot files; prints every error with its field; exits 1 on any.
+    Validate {
+        /// Robot files (JSON).
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+    },
+    /// Compute FK once and print it as JSON (the REST API's `fk` response).
+    Fk(FkArgs),
+    /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
+    /// Used as the container HEALTHCHECK (the image has no curl).
+    Healthcheck {
+        /// Address of the HTTP listener to probe.
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_ADDR",
+            default_value = "127.0.0.1:8080"
+        )]
+        addr: String,
+        /// Give up after this long.
+        #[arg(long, default_value = "3s", value_parser = parse_duration)]
+        timeout: Duration,
+    },
+}
+
+/// Arguments of `kinserve fk`.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
+pub struct FkArgs {
+    /// A robot from the robots directory, by name.
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// A robot model file (JSON).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Joint values, comma separated: rad (or deg with --deg) for revolute, model length unit for prismatic.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub joints: Vec<f64>,
+    /// Revolute joint values are in degrees.
+    #[arg(long)]
+    pub deg: bool,
+    /// Also print every intermediate frame.
+    #[arg(long)]
+    pub frames: bool,
+    /// Do not check joint limits.
+    #[arg(long)]
+    pub no_limits: bool,
+    /// Where built-in robots live.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
+    pub robots_dir: PathBuf,
+}
+
+/// Log output format.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    #[default]
+    Human,
+    /// One JSON object per line.
+    Json,
+}
+
+/// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    let s = s.trim();
+    let (num, unit) = match s.find(|c: char| c.is_ascii_alphabetic()) {
+        Some(i) => (&s[..i], &s[i..]),
+        None => (s, "s"),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("not a duration: '{s}'"))?;
+    if !v.is_finite() || v < 0.0 {
+        return Err(format!("not a duration: '{s}'"));
+    }
+    let secs = match unit {
+        "ms" => v / 1000.0,
+        "s" => v,
+        "m" | "min" => v * 60.0,
+        "h" => v * 3600.0,
+        _ => return Err(format!("unknown unit in '{s}' (use ms, s, m or h)")),
+    };
+    Ok(Duration::from_secs_f64(secs))
+}
+
+/// Configuration of `kinserve serve`.
+#[derive(Clone, Debug, Args)]
+pub struct ServeConfig {
+    /// REST listener (port 0 picks a free port).
+    #[arg(long, env = "KINSERVE_HTTP_ADDR", default_value = "0.0.0.0:8080")]
+    pub http_addr: SocketAddr,
+    /// gRPC listener (port 0 picks a free port).
+    #[arg(long, env = "KINSERVE_GRPC_ADDR", default_value = "0.0.0.0:50051")]
+    pub grpc_addr: SocketAddr,
+    /// Directory of built-in (read-only) robot files.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
+    pub robots_dir: PathBuf,
+    /// Where registered robots are persisted.
+    #[arg(long, env = "KINSERVE_DATA_DIR", default_value = "./data")]
+    pub data_dir: PathBuf,
+    /// Bearer token required for register/replace/delete (REST and gRPC). Unset: open (a warning is logged).
+    #[arg(long, env = "KINSERVE_API_TOKEN", hide_env_values = true)]
+    pub api_token: Option<String>,
+    /// Allowed CORS origin (repeatable; env: comma separated). Default: any origin.
+    #[arg(
+        long = "cors-origin",
+        env = "KINSERVE_CORS_ORIGINS",
+        value_delimiter = ','
+    )]
+    pub cors_origins: Vec<String>,
+    /// Log format.
+    #[arg(long, env = "KINSERVE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Human)]
+    pub log_format: LogFormat,
+    /// Most configurations in one batch request.
+    #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
+    pub max_batch: usize,
+    /// Most movable joints in a model.
+    #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = 64)]
+    pub max_joints: usize,
+    /// Most DH rows (movable and fixed) in a model.
+    #[arg(long, env = "KINSERVE_MAX_LINKS", default_value_t = 256)]
+    pub max_links: usize,
+    /// Largest request body in bytes (all routes but batch).
+    #[arg(long, env = "KINSERVE_MAX_BODY_BYTES", default_value_t = 1 << 20)]
+    pub max_body_bytes: usize,
+    /// Largest batch request body (REST) or message (gRPC) in bytes.
+    #[arg(long, env = "KINSERVE_MAX_BATCH_BODY_BYTES", default_value_t = 16 << 20)]
+    pub max_batch_body_bytes: usize,
+    /// Most requests in flight at once; more are answered 503 / RESOURCE_EXHAUSTED at once.
+    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_REQUESTS", default_value_t = 1024)]
+    pub max_concurrent_requests: usize,
+    /// Longest time a request may take.
+    #[arg(long, env = "KINSERVE_REQUEST_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub request_timeout: Duration,
+    /// Longest time a client may take to send its request headers (HTTP/1).
+    #[arg(long, env = "KINSERVE_HEADER_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
+    pub header_timeout: Duration,
+    /// A WebSocket or gRPC stream with no message from the client for this long is closed.
+    #[arg(long, env = "KINSERVE_STREAM_IDLE_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
+    pub stream_idle_timeout: Duration,
+    /// How long shutdown waits for in-flight requests before exiting anyway.
+    #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
+    pub shutdown_timeout: Duration,
+}
+
+impl Default for ServeConfig {
+    fn default() -> Self {
+        #[derive(Parser)]
+        struct Wrap {
+            #[command(flatten)]
+            c: ServeConfig,
+        }
+        // Defaults exactly as the flags declare them (env is ignored only if unset).
+        Wrap::parse_from(["kinserve"]).c
+    }
+}
+
+impl ServeConfig {
+    /// A configuration for tests: both listeners on 127.0.0.1 port 0, data in `data_dir`,
+    /// built-ins from the crate's `robots/`, no env influence.
+    pub fn for_tests(data_dir: PathBuf) -> ServeConfig {
+        ServeConfig {
+            http_addr: "127.0.0.1:0".parse().expect("valid literal"),
+            grpc_addr: "127.0.0.1:0".parse().expect("valid literal"),
+            robots_dir: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/robots")),
+            data_dir,
+            api_token: None,
+            cors_origins: Vec::new(),
+            log_format: LogFormat::Human,
+            max_batch: 10_000,
+            max_joints: 64,
+            max_links: 256,
+            max_body_bytes: 1 << 20,
+            max_batch_body_bytes: 16 << 20,
+            max_concurrent_requests: 1024,
+            request_timeout: Duration::from_secs(30),
+            header_timeout: Duration::from_secs(10),
+            stream_idle_timeout: Duration::from_secs(300),
+            shutdown_timeout: Duration::from_secs(10),
+        }
+    }
+
+    /// The service limits this configuration sets.
+    pub fn service_limits(&self) -> ServiceLimits {
+        ServiceLimits {
+            model: ModelLimits {
+                max_joints: self.max_joints,
+                max_links: self.max_links,
+            },
+            max_batch: self.max_batch,
+        }
+    }
+}

@@ -1,0 +1,253 @@
+//! The protocol-neutral service: what REST and gRPC both call. Adapters
+//! validate and convert their wire types, call one method here, and convert back.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use subtle::ConstantTimeEq;
+
+use crate::error::{Error, Result};
+use crate::kinematics::Transform;
+use crate::model::{FkOptions, LengthUnit, ModelLimits, Robot, RobotSpec};
+use crate::registry::{Entry, Origin, PutMode, Registry};
+
+/// Limits the service enforces on requests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServiceLimits {
+    /// Model size limits.
+    pub model: ModelLimits,
+    /// Most configurations in one batch request (default 10,000).
+    pub max_batch: usize,
+}
+
+impl Default for ServiceLimits {
+    fn default() -> Self {
+        Self {
+            model: ModelLimits::default(),
+            max_batch: 10_000,
+        }
+    }
+}
+
+/// A line of the robot list.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobotSummary {
+    /// Name.
+    pub name: String,
+    /// Number of movable joints.
+    pub dof: usize,
+    /// DH convention.
+    pub convention: crate::model::ConventionSpec,
+    /// Length unit of its positions.
+    pub length_unit: LengthUnit,
+    /// Built-in or registered.
+    pub origin: Origin,
+}
+
+/// Many joint configurations stored back to back: `values` holds them all and
+/// `lens[i]` is the length of configuration `i` (one allocation per request,
+/// none per configuration).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Configurations {
+    /// All values, configuration after configuration.
+    pub values: Vec<f64>,
+    /// Length of each configuration.
+    pub lens: Vec<u32>,
+}
+
+impl Configurations {
+    /// Number of configurations.
+    pub fn len(&self) -> usize {
+        self.lens.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.lens.is_empty()
+    }
+
+    /// Appends one configuration.
+    pub fn push(&mut self, q: &[f64]) {
+        self.values.extend_from_slice(q);
+        self.lens.push(q.len() as u32);
+    }
+}
+
+/// The service shared by every front door.
+#[derive(Debug)]
+pub struct Service {
+    registry: Registry,
+    limits: ServiceLimits,
+    ready: AtomicBool,
+    token: Option<String>,
+}
+
+impl Service {
+    /// A service over `registry`; `token`, if set, guards every mutation.
+    pub fn new(registry: Registry, limits: ServiceLimits, token: Option<String>) -> Service {
+        Service {
+            registry,
+            limits,
+            ready: AtomicBool::new(false),
+            token: token.filter(|t| !t.is_empty()),
+        }
+    }
+
+    /// Whether the service takes traffic (robots loaded, not shutting down).
+    pub fn is_ready(&self) -> bool {
+        self.ready.load(Ordering::Acquire)
+    }
+
+    /// Flips readiness (true once robots are loaded, false on shutdown).
+    pub fn set_ready(&self, ready: bool) {
+        self.ready.store(ready, Ordering::Release);
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> &ServiceLimits {
+        &self.limits
+    }
+
+    /// The registry.
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+
+    /// Whether mutations need a token.
+    pub fn auth_required(&self) -> bool {
+        self.token.is_some()
+    }
+
+    /// Checks a presented bearer token in constant time. Passes when no token is configured.
+    pub fn authorize(&self, presented: Option<&str>) -> Result<()> {
+        let Some(expected) = &self.token else {
+            return Ok(());
+        };
+        match presented {
+            Some(p) if bool::from(p.as_bytes().ct_eq(expected.as_bytes())) => Ok(()),
+            _ => Err(Error::Unauthenticated),
+        }
+    }
+
+    /// Every robot, sorted by name.
+    pub fn list(&self) -> Vec<RobotSummary> {
+        self.registry
+            .list()
+            .iter()
+            .map(|e| RobotSummary {
+                name: e.robot.name().to_string(),
+                dof: e.robot.dof(),
+                convention: e.robot.spec().convention,
+                length_unit: e.robot.length_unit(),
+                origin: e.origin,
+            })
+            .collect()
+    }
+
+    /// The robot called `name`.
+    pub fn robot(&self, name: &str) -> Result<Arc<Entry>> {
+        self.registry.get(name).ok_or_else(|| Error::NotFound {
+            name: truncate_name(name),
+        })
+    }
+
+    /// Validates and registers a model, durably. `Ok(true)` if created,
+    /// `Ok(false)` if it replaced a registered robot.
+    pub async fn register(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
+        let robot = Robot::from_spec(spec, &self.limits.model)?;
+        let this = Arc::clone(self);
+        let created = tokio::task::spawn_blocking(move || this.registry.put(robot, mode))
+            .await
+            .map_err(|e| Error::Internal {
+                detail: e.to_string(),
+            })??;
+        self.record_robot_count();
+        Ok(created)
+    }
+
+    /// Deletes a registered robot, durably.
+    pub async fn delete(self: &Arc<Self>, name: &str) -> Result<()> {
+        let this = Arc::clone(self);
+        let name = name.to_string();
+        tokio::task::spawn_blocking(move || this.registry.delete(&name))
+            .await
+            .map_err(|e| Error::Internal {
+                detail: e.to_string(),
+            })??;
+        self.record_robot_count();
+        Ok(())
+    }
+
+    /// Publishes the robot counts as gauges.
+    pub fn record_robot_count(&self) {
+        let (builtin, registered) = self.registry.counts();
+        metrics::gauge!("kinserve_robots", "source" => "builtin").set(builtin as f64);
+        metrics::gauge!("kinserve_robots", "source" => "registered").set(registered as f64);
+    }
+
+    /// Checked FK of one configuration: the tool pose.
+    pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
+        let t = robot.fk_checked(q, opts)?;
+        metrics::counter!("kinserve_poses_computed_total").increment(1);
+        Ok(t)
+    }
+
+    /// Checked FK of one configuration with every frame (see [`Robot::fk_frames_checked`]).
+    pub fn fk_frames(
+        &self,
+        robot: &Robot,
+        q: &[f64],
+        opts: &FkOptions,
+    ) -> Result<(Transform, Vec<Transform>)> {
+        let r = robot.fk_frames_checked(q, opts)?;
+        metrics::counter!("kinserve_poses_computed_total").increment(1);
+        Ok(r)
+    }
+
+    /// Checks a batch size against the limit before anything is decoded further.
+    pub fn check_batch_size(&self, count: usize) -> Result<()> {
+        if count > self.limits.max_batch {
+            return Err(Error::TooLarge {
+                detail: format!(
+                    "a batch holds at most {} configurations, got {count}",
+                    self.limits.max_batch
+                ),
+                field: Some("configurations".into()),
+            });
+        }
+        Ok(())
+    }
+
+    /// Checked FK of many configurations, poses in request order. One bad
+    /// configuration fails the whole batch, naming it (`configurations[17][2]`).
+    pub fn fk_batch(
+        &self,
+        robot: &Robot,
+        configs: &Configurations,
+        opts: &FkOptions,
+    ) -> Result<Vec<Transform>> {
+        self.check_batch_size(configs.len())?;
+        let mut offset = 0usize;
+        for (i, &len) in configs.lens.iter().enumerate() {
+            let len = len as usize;
+            let q = configs.values.get(offset..offset + len).unwrap_or(&[]);
+            robot.check_joints_at(q, opts, || format!("configurations[{i}]"))?;
+            offset += len;
+        }
+        let mut out = vec![Transform::IDENTITY; configs.len()];
+        robot
+            .chain()
+            .forward_batch(&configs.values, opts.angle_unit.to_rad(), &mut out);
+        metrics::counter!("kinserve_poses_computed_total").increment(out.len() as u64);
+        Ok(out)
+    }
+}
+
+/// Robot names echoed in errors are cut to 64 characters (a 10 KB name is not echoed back).
+fn truncate_name(name: &str) -> String {
+    let mut s: String = name.chars().take(64).collect();
+    if s.len() < name.len() {
+        s.push('…');
+    }
+    s
+}

@@ -1,0 +1,198 @@
+//! Building and running the server: binds both listeners (port 0 works), loads
+//! robots, serves until a shutdown signal, then drains gracefully.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use tokio::net::TcpListener;
+use tokio::sync::{Semaphore, watch};
+
+use crate::api::rest::{self, AppState};
+use crate::config::ServeConfig;
+use crate::registry::{FileStore, Registry};
+use crate::service::Service;
+
+/// A built, not yet running server.
+pub struct App {
+    http: TcpListener,
+    grpc: TcpListener,
+    http_addr: SocketAddr,
+    grpc_addr: SocketAddr,
+    service: Arc<Service>,
+    config: Arc<ServeConfig>,
+    shutdown_tx: watch::Sender<bool>,
+}
+
+/// Triggers a graceful shutdown of a running [`App`].
+#[derive(Clone, Debug)]
+pub struct ShutdownHandle(watch::Sender<bool>);
+
+impl ShutdownHandle {
+    /// Starts the graceful shutdown (readiness flips, streams close, in-flight requests finish).
+    pub fn shutdown(&self) {
+        let _ = self.0.send(true);
+    }
+}
+
+impl App {
+    /// Loads robots (built-ins, then the persisted ones) and binds both listeners.
+    pub async fn build(config: ServeConfig) -> std::io::Result<App> {
+        let limits = config.service_limits();
+        let store =
+            FileStore::open(&config.data_dir).map_err(|e| std::io::Error::other(e.to_string()))?;
+        let registry = Registry::new(Box::new(store));
+        let builtins = registry.load_builtins(&config.robots_dir, &limits.model);
+        if builtins.loaded == 0 {
+            tracing::warn!(dir = %config.robots_dir.display(), "no built-in robots loaded (set --robots-dir / KINSERVE_ROBOTS_DIR)");
+        }
+        let stored = registry.load_stored(&limits.model);
+        for (label, e) in builtins.skipped.iter().chain(&stored.skipped) {
+            tracing::error!(file = %label, error = %e, "skipping robot file (left in place)");
+        }
+        tracing::info!(
+            builtin = builtins.loaded,
+            registered = stored.loaded,
+            "robots loaded"
+        );
+        if config.api_token.as_deref().is_none_or(str::is_empty) {
+            tracing::warn!(
+                "KINSERVE_API_TOKEN is not set: anyone who can reach the server may register and delete robots"
+            );
+        }
+        let service = Arc::new(Service::new(registry, limits, config.api_token.clone()));
+        let http = TcpListener::bind(config.http_addr).await?;
+        let grpc = TcpListener::bind(config.grpc_addr).await?;
+        let (shutdown_tx, _) = watch::channel(false);
+        Ok(App {
+            http_addr: http.local_addr()?,
+            grpc_addr: grpc.local_addr()?,
+            http,
+            grpc,
+            service,
+            config: Arc::new(config),
+            shutdown_tx,
+        })
+    }
+
+    /// Address the REST listener is bound to.
+    pub fn http_addr(&self) -> SocketAddr {
+        self.http_addr
+    }
+
+    /// Address the gRPC listener is bound to.
+    pub fn grpc_addr(&self) -> SocketAddr {
+        self.grpc_addr
+    }
+
+    /// Port of the REST listener.
+    pub fn http_port(&self) -> u16 {
+        self.http_addr.port()
+    }
+
+    /// Port of the gRPC listener.
+    pub fn grpc_port(&self) -> u16 {
+        self.grpc_addr.port()
+    }
+
+    /// The shared service.
+    pub fn service(&self) -> Arc<Service> {
+        self.service.clone()
+    }
+
+    /// A handle that stops the server gracefully.
+    pub fn shutdown_handle(&self) -> ShutdownHandle {
+        ShutdownHandle(self.shutdown_tx.clone())
+    }
+
+    /// Serves until [`ShutdownHandle::shutdown`] or SIGTERM/SIGINT, then drains.
+    pub async fn run_until_stopped(self) -> std::io::Result<()> {
+        let App {
+            http,
+            grpc,
+            service,
+            config,
+            shutdown_tx,
+            http_addr,
+            grpc_addr,
+        } = self;
+        let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
+        let state = AppState {
+            service: service.clone(),
+            config: config.clone(),
+            shutdown: shutdown_tx.subscribe(),
+            metrics: crate::telemetry::metrics_handle(),
+            permits: permits.clone(),
+        };
+        service.record_robot_count();
+        let router = rest::router(state);
+        let mut rx = shutdown_tx.subscribe();
+        let signal_tx = shutdown_tx.clone();
+        tokio::spawn(async move {
+            tokio::select! {
+                _ = os_signal() => { let _ = signal_tx.send(true); }
+                _ = rx.wait_for(|s| *s) => {}
+            }
+        });
+        let grpc_server = crate::api::grpc::serve(
+            grpc,
+            service.clone(),
+            config.clone(),
+            permits,
+            shutdown_tx.subscribe(),
+        );
+        let mut http_rx = shutdown_tx.subscribe();
+        let http_server = axum::serve(http, router).with_graceful_shutdown(async move {
+            let _ = http_rx.wait_for(|s| *s).await;
+        });
+        service.set_ready(true);
+        tracing::info!(http = %http_addr, grpc = %grpc_addr, "kinserve serving");
+        let mut ready_rx = shutdown_tx.subscribe();
+        let svc = service.clone();
+        let drain_timeout = config.shutdown_timeout;
+        tokio::spawn(async move {
+            let _ = ready_rx.wait_for(|s| *s).await;
+            svc.set_ready(false);
+            tracing::info!("shutdown requested: draining");
+        });
+        let both = async { tokio::try_join!(async { http_server.await }, grpc_server) };
+        let mut deadline_rx = shutdown_tx.subscribe();
+        tokio::select! {
+            r = both => { r?; }
+            _ = async {
+                let _ = deadline_rx.wait_for(|s| *s).await;
+                tokio::time::sleep(drain_timeout).await;
+            } => {
+                tracing::warn!("in-flight requests did not finish within the shutdown timeout");
+            }
+        }
+        tracing::info!("kinserve stopped");
+        Ok(())
+    }
+}
+
+async fn os_signal() {
+    #[cfg(unix)]
+    {
+        let mut term =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(s) => s,
+                Err(_) => {
+                    let _ = tokio::signal::ctrl_c().await;
+                    return;
+                }
+            };
+        tokio::select! {
+            _ = term.recv() => {}
+            _ = tokio::signal::ctrl_c() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+/// Resolves once `rx` says shutdown has started (or its sender is gone).
+pub async fn shutdown_started(rx: &mut watch::Receiver<bool>) {
+    let _ = rx.wait_for(|stop| *stop).await;
+}
