@@ -1,0 +1,171 @@
+//! Spawning the real server on port 0 and clients for it.
+
+use std::path::{Path, PathBuf};
+
+use kinserve::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
+use kinserve::config::ServeConfig;
+use kinserve::{App, ShutdownHandle};
+use tonic::transport::Channel;
+
+/// A running server with its own temporary data directory.
+pub struct TestApp {
+    /// `http://127.0.0.1:PORT`.
+    pub http: String,
+    /// `ws://127.0.0.1:PORT`.
+    pub ws: String,
+    /// `http://127.0.0.1:PORT` of the gRPC listener.
+    pub grpc: String,
+    /// HTTP client.
+    pub client: reqwest::Client,
+    /// The data directory (kept alive as long as the app).
+    pub data_dir: PathBuf,
+    _tmp: Option<tempfile::TempDir>,
+    shutdown: ShutdownHandle,
+    task: Option<tokio::task::JoinHandle<std::io::Result<()>>>,
+}
+
+/// Starts a server with the test configuration.
+pub async fn spawn_app() -> TestApp {
+    spawn_app_with(|_| {}).await
+}
+
+/// Starts a server after `configure` adjusted its configuration.
+pub async fn spawn_app_with(configure: impl FnOnce(&mut ServeConfig)) -> TestApp {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let dir = tmp.path().to_path_buf();
+    let mut app = spawn_in(&dir, configure).await;
+    app._tmp = Some(tmp);
+    app
+}
+
+/// Starts a server on an existing data directory (for restart tests).
+pub async fn spawn_in(data_dir: &Path, configure: impl FnOnce(&mut ServeConfig)) -> TestApp {
+    let mut config = ServeConfig::for_tests(data_dir.to_path_buf());
+    configure(&mut config);
+    let app = App::build(config).await.expect("server builds");
+    let http_port = app.http_port();
+    let grpc_port = app.grpc_port();
+    let shutdown = app.shutdown_handle();
+    let task = tokio::spawn(app.run_until_stopped());
+    let t = TestApp {
+        http: format!("http://127.0.0.1:{http_port}"),
+        ws: format!("ws://127.0.0.1:{http_port}"),
+        grpc: format!("http://127.0.0.1:{grpc_port}"),
+        client: reqwest::Client::new(),
+        data_dir: data_dir.to_path_buf(),
+        _tmp: None,
+        shutdown,
+        task: Some(task),
+    };
+    t.wait_ready().await;
+    t
+}
+
+impl TestApp {
+    /// Polls `/readyz` until 200 (at most ~5 s).
+    pub async fn wait_ready(&self) {
+        for _ in 0..500 {
+            if let Ok(r) = self
+                .client
+                .get(format!("{}/readyz", self.http))
+                .send()
+                .await
+                && r.status() == 200
+            {
+                return;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        }
+        panic!("server did not become ready");
+    }
+
+    /// `POST {path}` with a JSON body.
+    pub async fn post(&self, path: &str, body: &serde_json::Value) -> reqwest::Response {
+        self.client
+            .post(format!("{}{path}", self.http))
+            .json(body)
+            .send()
+            .await
+            .expect("request sent")
+    }
+
+    /// `GET {path}`.
+    pub async fn get(&self, path: &str) -> reqwest::Response {
+        self.client
+            .get(format!("{}{path}", self.http))
+            .send()
+            .await
+            .expect("request sent")
+    }
+
+    /// A gRPC client connected to the server.
+    pub async fn grpc_client(&self) -> KinematicsServiceClient<Channel> {
+        KinematicsServiceClient::connect(self.grpc.clone())
+            .await
+            .expect("grpc connects")
+    }
+
+    /// Stops the server gracefully and waits for it to exit; returns its result.
+    pub async fn stop(mut self) -> std::io::Result<()> {
+        self.shutdown.shutdown();
+        match self.task.take() {
+            Some(t) => t.await.expect("server task did not panic"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for TestApp {
+    fn drop(&mut self) {
+        self.shutdown.shutdown();
+    }
+}
+
+/// A small valid model (2-DoF planar arm, metres, degrees).
+pub fn planar_model(name: &str) -> serde_json::Value {
+    serde_json::json!({
+        "name": name,
+        "convention": "standard",
+        "angle_unit": "deg",
+        "length_unit": "m",
+        "links": [
+            {"joint": "revolute", "a": 0.5, "alpha": 0, "d": 0, "theta": 0, "limits": [-170, 170]},
+            {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}
+        ]
+    })
+}
+
+/// Asserts two numbers agree within `tol` (absolute, scaled by max(1, |b|)).
+pub fn assert_close(a: f64, b: f64, tol: f64, what: &str) {
+    let scale = b.abs().max(1.0);
+    assert!(
+        (a - b).abs() <= tol * scale,
+        "{what}: {a} vs {b} (tol {tol})"
+    );
+}
+
+/// Position `[x,y,z]` from a JSON pose.
+pub fn position(pose: &serde_json::Value) -> [f64; 3] {
+    let p = pose["position"].as_array().expect("position array");
+    [
+        p[0].as_f64().unwrap(),
+        p[1].as_f64().unwrap(),
+        p[2].as_f64().unwrap(),
+    ]
+}
+
+/// The 16 matrix entries (row-major) of a JSON pose.
+pub fn matrix16(pose: &serde_json::Value) -> Vec<f64> {
+    pose["matrix"]
+        .as_array()
+        .expect("matrix")
+        .iter()
+        .flat_map(|r| {
+            r.as_array()
+                .expect("row")
+                .iter()
+                .map(|x| x.as_f64().expect("number"))
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}

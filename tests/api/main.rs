@@ -1,0 +1,6 @@
+//! Contract tests: the real server on port 0, spoken to with real clients.
+mod contract;
+mod grpc;
+mod helpers;
+mod rest;
+mod ws;
