@@ -8,6 +8,7 @@ pub mod cli;
 pub mod config;
 pub mod error;
 pub mod kinematics;
+pub mod load;
 pub mod model;
 pub mod registry;
 pub mod service;

@@ -4,6 +4,7 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
+use axum::serve::ListenerExt;
 use tokio::net::TcpListener;
 use tokio::sync::{Semaphore, watch};
 
@@ -141,6 +142,9 @@ impl App {
             shutdown_tx.subscribe(),
         );
         let mut http_rx = shutdown_tx.subscribe();
+        let http = http.tap_io(|tcp| {
+            let _ = tcp.set_nodelay(true);
+        });
         let http_server = axum::serve(http, router).with_graceful_shutdown(async move {
             let _ = http_rx.wait_for(|s| *s).await;
         });

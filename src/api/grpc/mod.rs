@@ -1,6 +1,7 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and reflection.
 
 mod convert;
+mod oversize;
 pub mod status;
 
 use std::pin::Pin;
@@ -8,8 +9,8 @@ use std::sync::Arc;
 
 use tokio::net::TcpListener;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, watch};
-use tokio_stream::Stream;
 use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
+use tokio_stream::{Stream, StreamExt};
 use tonic::{Request, Response, Status, Streaming};
 
 use crate::config::ServeConfig;
@@ -224,7 +225,7 @@ impl KinematicsService for GrpcService {
                     Ok(Ok(None)) => return,
                     Ok(Err(status)) => {
                         // Undecodable or oversized message: report it and end (the transport state is unknown).
-                        let _ = tx.send(Err(status)).await;
+                        let _ = tx.send(Err(oversize::remap_status(status))).await;
                         return;
                     }
                 };
@@ -290,16 +291,25 @@ pub async fn serve(
     })
     .max_decoding_message_size(max_message)
     .max_encoding_message_size(usize::MAX);
+    // Oversized messages: RESOURCE_EXHAUSTED, not tonic's OUT_OF_RANGE.
+    let kin = oversize::OversizedIsResourceExhausted(kin);
     let mut shutdown_rx = shutdown;
+    // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to listeners it binds).
+    let incoming = TcpListenerStream::new(listener).map(|s| {
+        s.inspect(|tcp| {
+            let _ = tcp.set_nodelay(true);
+        })
+    });
     let health_on_stop = health.clone();
     tonic::transport::Server::builder()
         .timeout(config.request_timeout)
+        .tcp_nodelay(true)
         .http2_keepalive_interval(Some(std::time::Duration::from_secs(30)))
         .add_service(kin)
         .add_service(health_service)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async move {
+        .serve_with_incoming_shutdown(incoming, async move {
             let _ = shutdown_rx.wait_for(|s| *s).await;
             health_on_stop
                 .set_not_serving::<KinematicsServiceServer<GrpcService>>()

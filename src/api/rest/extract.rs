@@ -64,8 +64,24 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
                     }
                 }
             })?;
-        Ok(JsonBody(parse_json(&bytes)?))
+        Ok(JsonBody(parse_object(&bytes)?))
     }
+}
+
+/// Parses a JSON object into `T` (see [`parse_json`]). A top-level array is
+/// refused as a wrong type: serde would otherwise read a struct from an array
+/// of its fields in declaration order (`[[0, 0]]` as `{"joints": [0, 0]}`).
+pub fn parse_object<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Error> {
+    let first = bytes
+        .iter()
+        .find(|b| !matches!(b, b' ' | b'\t' | b'\n' | b'\r'));
+    if first == Some(&b'[') {
+        return Err(Error::Malformed {
+            detail: "invalid type: array, expected a JSON object".into(),
+            violations: Vec::new(),
+        });
+    }
+    parse_json(bytes)
 }
 
 /// The `{name}` path segment of a robot route.

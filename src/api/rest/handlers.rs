@@ -231,3 +231,16 @@ pub async fn not_found(uri: axum::http::Uri) -> ApiError {
         path: uri.path().chars().take(200).collect(),
     })
 }
+
+/// Known route, unsupported method: 405 problem (axum keeps the `Allow` header).
+pub async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> Problem {
+    Problem::protocol(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "method-not-allowed",
+        "Method not allowed",
+        format!(
+            "method {method} is not allowed on '{}'",
+            uri.path().chars().take(200).collect::<String>()
+        ),
+    )
+}

@@ -138,18 +138,37 @@ impl From<Error> for ApiError {
     }
 }
 
-impl IntoResponse for ApiError {
+impl Problem {
+    /// A problem with no [`Error`] behind it (protocol-level failures such as
+    /// 405 Method Not Allowed or a refused WebSocket upgrade).
+    pub fn protocol(status: StatusCode, kind: &str, title: &str, detail: String) -> Problem {
+        Problem {
+            type_: format!("urn:kinserve:problem:{kind}"),
+            title: title.to_string(),
+            status: status.as_u16(),
+            detail,
+            errors: Vec::new(),
+        }
+    }
+}
+
+impl IntoResponse for Problem {
     fn into_response(self) -> Response {
-        let problem = Problem::from_error(&self.0);
-        let status =
-            StatusCode::from_u16(problem.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
-        let body = serde_json::to_vec(&problem).unwrap_or_default();
+        let status = StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR);
+        let body = serde_json::to_vec(&self).unwrap_or_default();
         let mut resp = (status, body).into_response();
-        let h = resp.headers_mut();
-        h.insert(
+        resp.headers_mut().insert(
             header::CONTENT_TYPE,
             HeaderValue::from_static("application/problem+json"),
         );
+        resp
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let mut resp = Problem::from_error(&self.0).into_response();
+        let h = resp.headers_mut();
         match &self.0 {
             Error::Unauthenticated => {
                 h.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));

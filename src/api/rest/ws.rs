@@ -1,15 +1,17 @@
 //! `GET /v1/robots/{name}/fk/stream`: FK over a WebSocket, one reply per message, in order.
 
 use axum::extract::State;
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::response::Response;
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
 
 use super::AppState;
 use super::dto::{PosesSer, WsIdOnly, WsReply, WsRequest};
-use super::extract::RobotName;
+use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::error::Error;
-use crate::model::{FkOptions, Pose, parse_json};
+use crate::model::{FkOptions, Pose};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
@@ -24,9 +26,29 @@ const GOING_AWAY: u16 = 1001;
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,
-    ws: WebSocketUpgrade,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
     state.service.robot(&name)?;
+    // A request that is not a valid WebSocket handshake gets a problem, not axum's plain text.
+    let ws = match ws {
+        Ok(ws) => ws,
+        Err(rejection) if rejection.status() == StatusCode::BAD_REQUEST => {
+            return Err(Error::Malformed {
+                detail: format!("not a WebSocket handshake: {}", rejection.body_text()),
+                violations: Vec::new(),
+            }
+            .into());
+        }
+        Err(rejection) => {
+            return Ok(Problem::protocol(
+                rejection.status(),
+                "websocket-upgrade",
+                "WebSocket upgrade failed",
+                rejection.body_text(),
+            )
+            .into_response());
+        }
+    };
     let max = state.config.max_body_bytes;
     Ok(ws
         .max_message_size(max)
@@ -89,7 +111,7 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
 
 /// The reply to one text message.
 fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
-    let req: WsRequest = match parse_json(bytes) {
+    let req: WsRequest = match parse_object(bytes) {
         Ok(r) => r,
         Err(e) => {
             let id = serde_json::from_slice::<WsIdOnly>(bytes)

@@ -1,0 +1,231 @@
+// kinserve playground: REST and WebSocket client.
+// No third-party code; all server strings are returned as plain data and the
+// caller puts them into the page with textContent only.
+
+/** An HTTP failure carrying the RFC 9457 problem document (or a stand-in). */
+export class ApiError extends Error {
+  constructor(status, problem) {
+    const p = problem && typeof problem === 'object' ? problem : {};
+    super(String(p.detail || p.title || `HTTP ${status}`));
+    this.name = 'ApiError';
+    this.status = status;
+    this.problem = {
+      type: typeof p.type === 'string' ? p.type : 'about:blank',
+      title: typeof p.title === 'string' ? p.title : '',
+      status: typeof p.status === 'number' ? p.status : status,
+      detail: typeof p.detail === 'string' ? p.detail : '',
+      errors: normalizeFieldErrors(p.errors),
+    };
+  }
+}
+
+/** Field errors as `[{field, message}]` with string members, whatever came in. */
+export function normalizeFieldErrors(errors) {
+  if (!Array.isArray(errors)) return [];
+  return errors
+    .filter((e) => e && typeof e === 'object')
+    .map((e) => ({
+      field: typeof e.field === 'string' ? e.field : String(e.field ?? ''),
+      message: typeof e.message === 'string' ? e.message : String(e.message ?? ''),
+    }));
+}
+
+async function readBody(resp) {
+  const text = await resp.text();
+  if (!text) return null;
+  try {
+    return JSON.parse(text);
+  } catch {
+    return { detail: text.slice(0, 500) };
+  }
+}
+
+async function request(method, path, { body, headers = {}, signal } = {}) {
+  const init = { method, headers: { Accept: 'application/json', ...headers }, signal };
+  if (body !== undefined) {
+    init.body = typeof body === 'string' ? body : JSON.stringify(body);
+    if (!init.headers['Content-Type']) init.headers['Content-Type'] = 'application/json';
+  }
+  let resp;
+  try {
+    resp = await fetch(path, init);
+  } catch (err) {
+    if (err && err.name === 'AbortError') throw err;
+    throw new ApiError(0, { title: 'Network error', detail: `Network error: ${err && err.message ? err.message : err}` });
+  }
+  const data = await readBody(resp);
+  if (!resp.ok) {
+    const problem = data && typeof data === 'object' ? { ...data } : {};
+    if (!problem.detail && !problem.title) problem.title = `${resp.status} ${resp.statusText}`.trim();
+    throw new ApiError(resp.status, problem);
+  }
+  return { status: resp.status, statusText: resp.statusText, data };
+}
+
+const robotPath = (name) => `/v1/robots/${encodeURIComponent(name)}`;
+
+/** `GET /v1/robots` → array of summaries. */
+export async function listRobots(signal) {
+  const { data } = await request('GET', '/v1/robots', { signal });
+  return data && Array.isArray(data.robots) ? data.robots : [];
+}
+
+/** `GET /v1/robots/{name}` → the robot model. */
+export async function getRobot(name, signal) {
+  const { data } = await request('GET', robotPath(name), { signal });
+  if (!data || typeof data !== 'object' || !Array.isArray(data.links)) {
+    throw new ApiError(0, { detail: `Unexpected model for robot '${name}'` });
+  }
+  return data;
+}
+
+/** `POST /v1/robots/{name}/fk/batch` with joints in degrees (revolute). */
+export async function fkBatch(name, configurations, signal) {
+  const { data } = await request('POST', `${robotPath(name)}/fk/batch`, {
+    body: { configurations, angle_unit: 'deg' },
+    signal,
+  });
+  return data;
+}
+
+/** `PUT /v1/robots/{name}` with the model text as typed; resolves `{status, statusText, data}`. */
+export async function putRobot(name, modelText, token) {
+  const headers = { 'Content-Type': 'application/json' };
+  if (token) headers.Authorization = `Bearer ${token}`;
+  return request('PUT', robotPath(name), { body: modelText, headers });
+}
+
+/**
+ * Live FK over `ws(s)://host/v1/robots/{name}/fk/stream`.
+ *
+ * At most one request is in flight. `update(joints)` only remembers the newest
+ * joints while a request is outstanding; they are sent when its reply arrives.
+ * The socket reconnects (with back-off) when it closes, and resends the newest
+ * joints. `close()` stops it for good (used when the robot changes).
+ */
+export class FkStream {
+  constructor(robotName, { onReply, onStatus } = {}) {
+    this.robotName = robotName;
+    this.onReply = onReply || (() => {});
+    this.onStatus = onStatus || (() => {});
+    this.ws = null;
+    this.closed = false;
+    this.nextId = 1;
+    this.inFlight = null; // {id, joints}
+    this.latest = null; // newest joints asked for
+    this.dirty = false; // latest not yet sent
+    this.backoff = 250;
+    this.timer = null;
+    this.connect();
+  }
+
+  url() {
+    const scheme = location.protocol === 'https:' ? 'wss:' : 'ws:';
+    return `${scheme}//${location.host}${robotPath(this.robotName)}/fk/stream`;
+  }
+
+  connect() {
+    if (this.closed) return;
+    this.onStatus('connecting');
+    let ws;
+    try {
+      ws = new WebSocket(this.url());
+    } catch (err) {
+      this.onStatus('error', String(err && err.message ? err.message : err));
+      this.scheduleReconnect();
+      return;
+    }
+    this.ws = ws;
+    ws.addEventListener('open', () => {
+      if (this.ws !== ws || this.closed) return;
+      this.backoff = 250;
+      this.onStatus('open');
+      this.inFlight = null;
+      if (this.latest) this.dirty = true;
+      this.pump();
+    });
+    ws.addEventListener('message', (ev) => {
+      if (this.ws !== ws || this.closed) return;
+      this.handleMessage(ev.data);
+    });
+    ws.addEventListener('close', () => {
+      if (this.ws !== ws) return;
+      this.ws = null;
+      if (this.inFlight) this.dirty = true; // its reply is lost: resend the newest joints
+      this.inFlight = null;
+      if (this.closed) return;
+      this.onStatus('closed');
+      this.scheduleReconnect();
+    });
+    ws.addEventListener('error', () => {
+      // A 'close' event always follows; nothing else to do here.
+    });
+  }
+
+  scheduleReconnect() {
+    if (this.closed || this.timer) return;
+    const delay = this.backoff;
+    this.backoff = Math.min(this.backoff * 2, 5000);
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      this.connect();
+    }, delay);
+  }
+
+  handleMessage(data) {
+    let msg;
+    try {
+      msg = JSON.parse(typeof data === 'string' ? data : '');
+    } catch {
+      msg = { error: { title: 'Bad reply', detail: 'The server sent a reply that is not JSON.' } };
+    }
+    if (!msg || typeof msg !== 'object') msg = { error: { detail: 'Empty reply' } };
+    const req = this.inFlight;
+    this.inFlight = null;
+    const joints = req ? req.joints : null;
+    try {
+      this.onReply(msg, joints);
+    } finally {
+      this.pump();
+    }
+  }
+
+  /** Ask for FK of `joints` (revolute in degrees, prismatic in model length unit). */
+  update(joints) {
+    this.latest = joints.slice();
+    this.dirty = true;
+    this.pump();
+  }
+
+  pump() {
+    if (this.closed || !this.dirty || this.inFlight || !this.latest) return;
+    const ws = this.ws;
+    if (!ws || ws.readyState !== WebSocket.OPEN) return;
+    const id = this.nextId++;
+    const joints = this.latest;
+    this.inFlight = { id, joints };
+    this.dirty = false;
+    try {
+      ws.send(JSON.stringify({ id, joints, angle_unit: 'deg', frames: true }));
+    } catch (err) {
+      this.inFlight = null;
+      this.dirty = true;
+      this.onStatus('error', String(err && err.message ? err.message : err));
+    }
+  }
+
+  close() {
+    this.closed = true;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    const ws = this.ws;
+    this.ws = null;
+    if (ws) {
+      try {
+        ws.close(1000, 'robot changed');
+      } catch {
+        /* already closing */
+      }
+    }
+  }
+}

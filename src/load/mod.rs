@@ -1,0 +1,418 @@
+//! `kinserve-load`: a load generator for every kinserve front door, with
+//! closed- and open-loop modes, HDR latency histograms and optional
+//! verification of every pose against the core library.
+
+mod targets;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::{Parser, ValueEnum};
+use hdrhistogram::Histogram;
+use serde::Serialize;
+
+use crate::config::parse_duration;
+use crate::kinematics::{JointKind, Transform};
+use crate::model::{ModelLimits, Robot, RobotSpec};
+
+/// What to load.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Target {
+    /// `POST /v1/robots/{name}/fk`, one pose per request.
+    Rest,
+    /// `POST /v1/robots/{name}/fk/batch` with `--batch-size` configurations.
+    RestBatch,
+    /// The WebSocket stream, `--pipeline` messages in flight per connection.
+    Ws,
+    /// gRPC `ForwardKinematics`.
+    Grpc,
+    /// gRPC `ForwardKinematicsBatch`.
+    GrpcBatch,
+    /// gRPC `StreamForwardKinematics`, `--pipeline` messages in flight per stream.
+    GrpcStream,
+    /// `GET /healthz` (baseline).
+    RestHealth,
+    /// `grpc.health.v1.Health/Check` (baseline).
+    GrpcHealth,
+}
+
+impl Target {
+    /// Every target, in table order.
+    pub const ALL: [Target; 8] = [
+        Target::RestHealth,
+        Target::Rest,
+        Target::RestBatch,
+        Target::Ws,
+        Target::GrpcHealth,
+        Target::Grpc,
+        Target::GrpcBatch,
+        Target::GrpcStream,
+    ];
+
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Rest => "rest",
+            Target::RestBatch => "rest-batch",
+            Target::Ws => "ws",
+            Target::Grpc => "grpc",
+            Target::GrpcBatch => "grpc-batch",
+            Target::GrpcStream => "grpc-stream",
+            Target::RestHealth => "rest-health",
+            Target::GrpcHealth => "grpc-health",
+        }
+    }
+
+    fn is_batch(self) -> bool {
+        matches!(self, Target::RestBatch | Target::GrpcBatch)
+    }
+}
+
+/// Command line of `kinserve-load`.
+#[derive(Clone, Debug, Parser)]
+#[command(
+    name = "kinserve-load",
+    version,
+    about = "Load generator for kinserve (REST, WebSocket, gRPC)"
+)]
+pub struct LoadArgs {
+    /// What to load.
+    #[arg(long, value_enum)]
+    pub target: Target,
+    /// Robot to compute FK for.
+    #[arg(long, default_value = "puma560")]
+    pub robot: String,
+    /// Connections (REST, WebSocket, gRPC channels) or streams, one worker each.
+    #[arg(long, default_value_t = 16)]
+    pub concurrency: usize,
+    /// How long to measure.
+    #[arg(long, default_value = "10s", value_parser = parse_duration)]
+    pub duration: Duration,
+    /// Load before measuring (not recorded).
+    #[arg(long, default_value = "2s", value_parser = parse_duration)]
+    pub warmup: Duration,
+    /// Open loop: total requests per second, spread over the workers; latency
+    /// counts from each request's scheduled send time. Absent: closed loop.
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Configurations per batch request.
+    #[arg(long, default_value_t = 100)]
+    pub batch_size: usize,
+    /// Messages in flight per stream (ws, grpc-stream).
+    #[arg(long, default_value_t = 32)]
+    pub pipeline: usize,
+    /// Seed of the random joint configurations (drawn within the joint limits).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Check every returned pose against the core library (a wrong pose counts as an error).
+    #[arg(long)]
+    pub verify: bool,
+    /// Print the result as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// REST address.
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub http_addr: String,
+    /// gRPC address.
+    #[arg(long, default_value = "127.0.0.1:50051")]
+    pub grpc_addr: String,
+    /// Stop after this many requests (0: no limit); for smoke tests.
+    #[arg(long, default_value_t = 0)]
+    pub max_requests: u64,
+}
+
+/// Latency summary in microseconds.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Latency {
+    /// Median.
+    pub p50: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// 99.9th percentile.
+    pub p999: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+/// Result of one run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Target loaded.
+    pub target: Target,
+    /// Robot.
+    pub robot: String,
+    /// Workers.
+    pub concurrency: usize,
+    /// Measured seconds.
+    pub duration_s: f64,
+    /// `closed` or `open@<rate>`.
+    pub mode: String,
+    /// Requests (messages) sent during measurement.
+    pub sent: u64,
+    /// Requests answered (successfully or not) during measurement.
+    pub answered: u64,
+    /// Poses received.
+    pub poses: u64,
+    /// Requests per second.
+    pub requests_per_s: f64,
+    /// Poses per second.
+    pub poses_per_s: f64,
+    /// Latency of answered requests (µs).
+    pub latency_us: Latency,
+    /// Error counts by kind.
+    pub errors: BTreeMap<String, u64>,
+    /// Whether poses were verified.
+    pub verified: bool,
+}
+
+impl Report {
+    /// Total errors.
+    pub fn error_count(&self) -> u64 {
+        self.errors.values().sum()
+    }
+
+    /// One table row (see [`Report::table_header`]).
+    pub fn table_row(&self) -> String {
+        format!(
+            "{:<12} {:>5} {:>11.0} {:>12.0} {:>9.0} {:>9.0} {:>9.0} {:>9.0} {:>9.0} {:>7}",
+            self.target.name(),
+            self.concurrency,
+            self.requests_per_s,
+            self.poses_per_s,
+            self.latency_us.p50,
+            self.latency_us.p90,
+            self.latency_us.p99,
+            self.latency_us.p999,
+            self.latency_us.max,
+            self.error_count()
+        )
+    }
+
+    /// Header of [`Report::table_row`].
+    pub fn table_header() -> String {
+        format!(
+            "{:<12} {:>5} {:>11} {:>12} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7}",
+            "target",
+            "conc",
+            "req/s",
+            "poses/s",
+            "p50 µs",
+            "p90 µs",
+            "p99 µs",
+            "p99.9 µs",
+            "max µs",
+            "errors"
+        )
+    }
+}
+
+/// Per-worker tallies.
+#[derive(Debug)]
+struct Tally {
+    hist: Histogram<u64>,
+    sent: u64,
+    answered: u64,
+    poses: u64,
+    errors: BTreeMap<String, u64>,
+}
+
+impl Tally {
+    fn new() -> Tally {
+        Tally {
+            hist: Histogram::new_with_bounds(1, 60_000_000, 3).expect("valid histogram bounds"),
+            sent: 0,
+            answered: 0,
+            poses: 0,
+            errors: BTreeMap::new(),
+        }
+    }
+
+    fn error(&mut self, kind: impl Into<String>) {
+        *self.errors.entry(kind.into()).or_insert(0) += 1;
+    }
+
+    fn record(&mut self, latency: Duration) {
+        let us = (latency.as_secs_f64() * 1e6).round().max(1.0) as u64;
+        let _ = self.hist.record(us.min(60_000_000));
+    }
+
+    fn merge(&mut self, other: Tally) {
+        let _ = self.hist.add(&other.hist);
+        self.sent += other.sent;
+        self.answered += other.answered;
+        self.poses += other.poses;
+        for (k, v) in other.errors {
+            *self.errors.entry(k).or_insert(0) += v;
+        }
+    }
+}
+
+/// What every worker shares.
+struct Plan {
+    args: LoadArgs,
+    robot: Option<Robot>,
+    /// Measurement window.
+    measure_from: Instant,
+    measure_until: Instant,
+}
+
+impl Plan {
+    fn measuring(&self, at: Instant) -> bool {
+        at >= self.measure_from && at < self.measure_until
+    }
+}
+
+/// Random joint configurations within the limits (revolute without limits: ±π;
+/// prismatic without limits: [0, 1] model units), in rad.
+pub struct ConfigSource {
+    state: u64,
+    ranges: Vec<(f64, f64)>,
+}
+
+impl ConfigSource {
+    /// A source for `robot`, seeded.
+    pub fn new(robot: &Robot, seed: u64) -> ConfigSource {
+        let ranges = robot
+            .joints()
+            .iter()
+            .map(|j| match (j.limits, j.kind) {
+                (Some(l), _) => l,
+                (None, JointKind::Revolute) => (-std::f64::consts::PI, std::f64::consts::PI),
+                (None, _) => (0.0, 1.0),
+            })
+            .collect();
+        ConfigSource {
+            state: seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            ranges,
+        }
+    }
+
+    fn next_unit(&mut self) -> f64 {
+        self.state ^= self.state << 13;
+        self.state ^= self.state >> 7;
+        self.state ^= self.state << 17;
+        (self.state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Appends one configuration to `out`.
+    pub fn fill(&mut self, out: &mut Vec<f64>) {
+        for i in 0..self.ranges.len() {
+            let (lo, hi) = self.ranges[i];
+            let u = self.next_unit();
+            out.push(lo + (hi - lo) * u);
+        }
+    }
+}
+
+/// Checks a returned pose (row-major 16 values) against the library's FK.
+fn verify_pose(robot: &Robot, q: &[f64], matrix16: &[f64]) -> bool {
+    if matrix16.len() != 16 {
+        return false;
+    }
+    let expect: Transform = robot.fk_unchecked(q);
+    let m = expect.matrix();
+    let scale = 1.0
+        + expect
+            .translation
+            .iter()
+            .fold(0.0f64, |a, x| a.max(x.abs()));
+    m.iter()
+        .flatten()
+        .zip(matrix16)
+        .all(|(a, b)| (a - b).abs() <= 1e-9 * scale)
+}
+
+/// Fetches the robot model over REST (for configurations and verification).
+async fn fetch_robot(http_addr: &str, name: &str) -> Result<Robot, String> {
+    let url = format!("http://{http_addr}/v1/robots/{name}");
+    let resp = reqwest::get(&url)
+        .await
+        .map_err(|e| format!("GET {url}: {e}"))?;
+    if !resp.status().is_success() {
+        return Err(format!("GET {url}: HTTP {}", resp.status()));
+    }
+    let spec: RobotSpec = resp.json().await.map_err(|e| format!("GET {url}: {e}"))?;
+    Robot::from_spec(
+        spec,
+        &ModelLimits {
+            max_joints: 4096,
+            max_links: 8192,
+        },
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Runs one load test and returns its report.
+pub async fn run(args: LoadArgs) -> Result<Report, String> {
+    if args.concurrency == 0 {
+        return Err("--concurrency must be at least 1".into());
+    }
+    if args.batch_size == 0 || args.pipeline == 0 {
+        return Err("--batch-size and --pipeline must be at least 1".into());
+    }
+    if let Some(r) = args.rate
+        && !(r.is_finite() && r > 0.0)
+    {
+        return Err("--rate must be a positive number".into());
+    }
+    let robot = match args.target {
+        Target::RestHealth | Target::GrpcHealth => None,
+        _ => Some(fetch_robot(&args.http_addr, &args.robot).await?),
+    };
+    let start = Instant::now() + Duration::from_millis(50);
+    let plan = Arc::new(Plan {
+        measure_from: start + args.warmup,
+        measure_until: start + args.warmup + args.duration,
+        robot,
+        args: args.clone(),
+    });
+    let mut handles = Vec::with_capacity(args.concurrency);
+    for worker in 0..args.concurrency {
+        let plan = plan.clone();
+        handles.push(tokio::spawn(
+            async move { targets::worker(plan, worker).await },
+        ));
+    }
+    let mut total = Tally::new();
+    for h in handles {
+        match h.await {
+            Ok(t) => total.merge(t),
+            Err(e) => total.error(format!("worker_panic: {e}")),
+        }
+    }
+    let secs = args.duration.as_secs_f64().max(1e-9);
+    let h = &total.hist;
+    let latency = if h.is_empty() {
+        Latency::default()
+    } else {
+        Latency {
+            p50: h.value_at_quantile(0.5) as f64,
+            p90: h.value_at_quantile(0.9) as f64,
+            p99: h.value_at_quantile(0.99) as f64,
+            p999: h.value_at_quantile(0.999) as f64,
+            max: h.max() as f64,
+        }
+    };
+    Ok(Report {
+        target: args.target,
+        robot: args.robot.clone(),
+        concurrency: args.concurrency,
+        duration_s: secs,
+        mode: match args.rate {
+            Some(r) => format!("open@{r}"),
+            None => "closed".into(),
+        },
+        sent: total.sent,
+        answered: total.answered,
+        poses: total.poses,
+        requests_per_s: total.answered as f64 / secs,
+        poses_per_s: total.poses as f64 / secs,
+        latency_us: latency,
+        errors: total.errors,
+        verified: args.verify,
+    })
+}

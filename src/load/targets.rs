@@ -1,0 +1,508 @@
+//! One worker per connection or stream, for each target.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use tokio_tungstenite::tungstenite::Message;
+
+use super::{ConfigSource, Plan, Tally, Target, verify_pose};
+use crate::api::grpc::pb;
+use crate::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
+
+/// Sending schedule of one worker: closed loop (send when ready) or open loop
+/// (fixed intervals; latency counts from the scheduled time).
+struct Schedule {
+    next: Instant,
+    interval: Option<Duration>,
+}
+
+impl Schedule {
+    fn new(plan: &Plan, worker: usize) -> Schedule {
+        let start = plan.measure_from - plan.args.warmup;
+        match plan.args.rate {
+            None => Schedule {
+                next: start,
+                interval: None,
+            },
+            Some(rate) => {
+                let per_worker = rate / plan.args.concurrency as f64;
+                let interval = Duration::from_secs_f64(1.0 / per_worker);
+                // Stagger workers across one interval.
+                let offset = interval.mul_f64(worker as f64 / plan.args.concurrency as f64);
+                Schedule {
+                    next: start + offset,
+                    interval: Some(interval),
+                }
+            }
+        }
+    }
+
+    /// The time this request counts from; advances the schedule.
+    fn take(&mut self) -> Instant {
+        match self.interval {
+            None => Instant::now(),
+            Some(i) => {
+                let t = self.next;
+                self.next += i;
+                t
+            }
+        }
+    }
+
+    /// Waits until the next scheduled send (open loop); returns at once in closed loop.
+    async fn wait(&self) {
+        if self.interval.is_some() {
+            tokio::time::sleep_until(self.next.into()).await;
+        }
+    }
+
+    fn due(&self, now: Instant) -> bool {
+        self.interval.is_none() || self.next <= now
+    }
+}
+
+fn rest_client() -> reqwest::Client {
+    reqwest::Client::builder()
+        .pool_max_idle_per_host(1)
+        .timeout(Duration::from_secs(30))
+        .build()
+        .unwrap_or_default()
+}
+
+async fn grpc_client(
+    addr: &str,
+) -> Result<KinematicsServiceClient<tonic::transport::Channel>, String> {
+    let ch = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+        .map_err(|e| e.to_string())?
+        .connect()
+        .await
+        .map_err(|e| format!("connect {addr}: {e}"))?;
+    Ok(KinematicsServiceClient::new(ch).max_decoding_message_size(usize::MAX))
+}
+
+fn json_matrix16(pose: &serde_json::Value) -> Vec<f64> {
+    pose["matrix"]
+        .as_array()
+        .map(|rows| {
+            rows.iter()
+                .filter_map(|r| r.as_array())
+                .flat_map(|r| r.iter().filter_map(|x| x.as_f64()))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Runs one worker until the measurement window closes.
+pub(super) async fn worker(plan: Arc<Plan>, worker: usize) -> Tally {
+    let mut tally = Tally::new();
+    let seed = plan.args.seed.wrapping_add(worker as u64 * 7919);
+    let source = plan.robot.as_ref().map(|r| ConfigSource::new(r, seed));
+    tokio::time::sleep_until((plan.measure_from - plan.args.warmup).into()).await;
+    let result = match plan.args.target {
+        Target::Ws | Target::GrpcStream => stream_worker(&plan, worker, source, &mut tally).await,
+        _ => unary_worker(&plan, worker, source, &mut tally).await,
+    };
+    if let Err(e) = result {
+        tally.error(format!("setup: {e}"));
+    }
+    tally
+}
+
+/// One request at a time (or on schedule), for every non-stream target.
+async fn unary_worker(
+    plan: &Plan,
+    worker: usize,
+    mut source: Option<ConfigSource>,
+    tally: &mut Tally,
+) -> Result<(), String> {
+    let args = &plan.args;
+    let http = rest_client();
+    let needs_grpc = matches!(
+        args.target,
+        Target::Grpc | Target::GrpcBatch | Target::GrpcHealth
+    );
+    let mut grpc = if needs_grpc && args.target != Target::GrpcHealth {
+        Some(grpc_client(&args.grpc_addr).await?)
+    } else {
+        None
+    };
+    let mut health = if args.target == Target::GrpcHealth {
+        let ch = tonic::transport::Endpoint::from_shared(format!("http://{}", args.grpc_addr))
+            .map_err(|e| e.to_string())?
+            .connect()
+            .await
+            .map_err(|e| e.to_string())?;
+        Some(tonic_health::pb::health_client::HealthClient::new(ch))
+    } else {
+        None
+    };
+    let per_request = if args.target.is_batch() {
+        args.batch_size
+    } else {
+        1
+    };
+    let mut schedule = Schedule::new(plan, worker);
+    let mut count = 0u64;
+    let mut q: Vec<f64> = Vec::new();
+    loop {
+        schedule.wait().await;
+        let t0 = schedule.take();
+        if Instant::now() >= plan.measure_until
+            || (args.max_requests > 0 && count >= args.max_requests)
+        {
+            return Ok(());
+        }
+        count += 1;
+        let measuring = plan.measuring(t0);
+        q.clear();
+        if let Some(src) = source.as_mut() {
+            for _ in 0..per_request {
+                src.fill(&mut q);
+            }
+        }
+        let dof = plan.robot.as_ref().map_or(0, |r| r.dof());
+        // Returns matrices of the poses received, or an error kind.
+        let outcome: Result<Vec<Vec<f64>>, String> = match args.target {
+            Target::RestHealth => match http
+                .get(format!("http://{}/healthz", args.http_addr))
+                .send()
+                .await
+            {
+                Ok(r) if r.status().is_success() => Ok(Vec::new()),
+                Ok(r) => Err(format!("http_{}", r.status().as_u16())),
+                Err(_) => Err("transport".into()),
+            },
+            Target::Rest | Target::RestBatch => {
+                let (url, body) = if args.target == Target::Rest {
+                    (
+                        format!("http://{}/v1/robots/{}/fk", args.http_addr, args.robot),
+                        serde_json::json!({ "joints": q }),
+                    )
+                } else {
+                    let configs: Vec<&[f64]> = q.chunks(dof.max(1)).collect();
+                    (
+                        format!(
+                            "http://{}/v1/robots/{}/fk/batch",
+                            args.http_addr, args.robot
+                        ),
+                        serde_json::json!({ "configurations": configs }),
+                    )
+                };
+                match http.post(url).json(&body).send().await {
+                    Ok(r) if r.status().is_success() => match r.json::<serde_json::Value>().await {
+                        Ok(v) if args.target == Target::Rest => Ok(vec![json_matrix16(&v["pose"])]),
+                        Ok(v) => Ok(v["poses"]
+                            .as_array()
+                            .map(|a| a.iter().map(json_matrix16).collect())
+                            .unwrap_or_default()),
+                        Err(_) => Err("decode".into()),
+                    },
+                    Ok(r) => Err(format!("http_{}", r.status().as_u16())),
+                    Err(_) => Err("transport".into()),
+                }
+            }
+            Target::GrpcHealth => {
+                let Some(h) = health.as_mut() else {
+                    return Err("no health client".into());
+                };
+                match h
+                    .check(tonic_health::pb::HealthCheckRequest {
+                        service: String::new(),
+                    })
+                    .await
+                {
+                    Ok(r)
+                        if r.get_ref().status
+                            == tonic_health::pb::health_check_response::ServingStatus::Serving
+                                as i32 =>
+                    {
+                        Ok(Vec::new())
+                    }
+                    Ok(_) => Err("not_serving".into()),
+                    Err(s) => Err(format!("grpc_{:?}", s.code())),
+                }
+            }
+            Target::Grpc => {
+                let Some(c) = grpc.as_mut() else {
+                    return Err("no grpc client".into());
+                };
+                let req = pb::ForwardKinematicsRequest {
+                    robot: args.robot.clone(),
+                    joints: q.clone(),
+                    options: None,
+                };
+                match c.forward_kinematics(req).await {
+                    Ok(r) => Ok(vec![
+                        r.into_inner().pose.map(|p| p.matrix).unwrap_or_default(),
+                    ]),
+                    Err(s) => Err(format!("grpc_{:?}", s.code())),
+                }
+            }
+            Target::GrpcBatch => {
+                let Some(c) = grpc.as_mut() else {
+                    return Err("no grpc client".into());
+                };
+                let req = pb::ForwardKinematicsBatchRequest {
+                    robot: args.robot.clone(),
+                    configurations: q
+                        .chunks(dof.max(1))
+                        .map(|c| pb::JointConfiguration { joints: c.to_vec() })
+                        .collect(),
+                    options: None,
+                };
+                match c.forward_kinematics_batch(req).await {
+                    Ok(r) => Ok(r.into_inner().poses.into_iter().map(|p| p.matrix).collect()),
+                    Err(s) => Err(format!("grpc_{:?}", s.code())),
+                }
+            }
+            Target::Ws | Target::GrpcStream => return Err("stream target in unary worker".into()),
+        };
+        let latency = t0.elapsed();
+        if !measuring {
+            continue;
+        }
+        tally.sent += 1;
+        tally.answered += 1;
+        match outcome {
+            Ok(matrices) => {
+                tally.record(latency);
+                let expected = if matches!(args.target, Target::RestHealth | Target::GrpcHealth) {
+                    0
+                } else {
+                    per_request
+                };
+                if matrices.len() != expected {
+                    tally.error("wrong_pose_count");
+                    continue;
+                }
+                tally.poses += matrices.len() as u64;
+                if args.verify
+                    && let Some(robot) = plan.robot.as_ref()
+                {
+                    for (k, m) in matrices.iter().enumerate() {
+                        if !verify_pose(robot, &q[k * dof..(k + 1) * dof], m) {
+                            tally.error("verify");
+                        }
+                    }
+                }
+            }
+            Err(kind) => tally.error(kind),
+        }
+    }
+}
+
+/// A message in flight on a stream.
+struct InFlight {
+    id: u64,
+    t0: Instant,
+    measuring: bool,
+    q: Vec<f64>,
+}
+
+/// Outcome of one stream reply.
+enum Reply {
+    Pose(u64, Vec<f64>),
+    Error(u64, String),
+    Closed(String),
+}
+
+/// Pipelined streams (WebSocket, gRPC bidi): up to `--pipeline` messages in flight.
+async fn stream_worker(
+    plan: &Plan,
+    worker: usize,
+    source: Option<ConfigSource>,
+    tally: &mut Tally,
+) -> Result<(), String> {
+    let args = &plan.args;
+    let mut source = source.ok_or("stream targets need a robot")?;
+    let mut schedule = Schedule::new(plan, worker);
+    let mut inflight: VecDeque<InFlight> = VecDeque::with_capacity(args.pipeline);
+    let mut next_id = 0u64;
+    let mut count = 0u64;
+
+    // Transport: a sender and a receiver of replies.
+    let (send_tx, mut reply_rx) = match args.target {
+        Target::Ws => {
+            let url = format!("ws://{}/v1/robots/{}/fk/stream", args.http_addr, args.robot);
+            let (ws, _) = tokio_tungstenite::connect_async(url)
+                .await
+                .map_err(|e| format!("ws connect: {e}"))?;
+            let (mut sink, mut stream) = ws.split();
+            let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
+            let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+            tokio::spawn(async move {
+                while let Some((id, q)) = rx.recv().await {
+                    let msg = serde_json::json!({ "id": id, "joints": q }).to_string();
+                    if sink.send(Message::Text(msg.into())).await.is_err() {
+                        return;
+                    }
+                }
+                let _ = sink.close().await;
+            });
+            tokio::spawn(async move {
+                while let Some(m) = stream.next().await {
+                    let reply = match m {
+                        Ok(Message::Text(t)) => match serde_json::from_str::<serde_json::Value>(&t)
+                        {
+                            Ok(v) => {
+                                let id = v["id"].as_u64().unwrap_or(u64::MAX);
+                                if v.get("pose").is_some() {
+                                    Reply::Pose(id, json_matrix16(&v["pose"]))
+                                } else {
+                                    Reply::Error(id, format!("ws_error_{}", v["error"]["status"]))
+                                }
+                            }
+                            Err(_) => Reply::Closed("decode".into()),
+                        },
+                        Ok(Message::Close(_)) => Reply::Closed("ws_closed".into()),
+                        Ok(_) => continue,
+                        Err(_) => Reply::Closed("transport".into()),
+                    };
+                    let stop = matches!(reply, Reply::Closed(_));
+                    if rtx.send(reply).await.is_err() || stop {
+                        return;
+                    }
+                }
+            });
+            (tx, rrx)
+        }
+        _ => {
+            let mut client = grpc_client(&args.grpc_addr).await?;
+            let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
+            let robot = args.robot.clone();
+            let (req_tx, req_rx) =
+                tokio::sync::mpsc::channel::<pb::StreamForwardKinematicsRequest>(args.pipeline);
+            tokio::spawn(async move {
+                while let Some((id, joints)) = rx.recv().await {
+                    let req = pb::StreamForwardKinematicsRequest {
+                        id,
+                        robot: robot.clone(),
+                        joints,
+                        options: None,
+                    };
+                    if req_tx.send(req).await.is_err() {
+                        return;
+                    }
+                }
+            });
+            let response = client
+                .stream_forward_kinematics(tokio_stream::wrappers::ReceiverStream::new(req_rx))
+                .await
+                .map_err(|s| format!("grpc stream: {s}"))?;
+            let mut inbound = response.into_inner();
+            let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+            tokio::spawn(async move {
+                loop {
+                    let reply = match inbound.message().await {
+                        Ok(Some(m)) => match m.result {
+                            Some(pb::stream_forward_kinematics_response::Result::Pose(p)) => {
+                                Reply::Pose(m.id, p.matrix)
+                            }
+                            Some(pb::stream_forward_kinematics_response::Result::Error(s)) => {
+                                Reply::Error(m.id, format!("stream_error_{}", s.code))
+                            }
+                            None => Reply::Error(m.id, "empty_result".into()),
+                        },
+                        Ok(None) => Reply::Closed("stream_closed".into()),
+                        Err(s) => Reply::Closed(format!("grpc_{:?}", s.code())),
+                    };
+                    let stop = matches!(reply, Reply::Closed(_));
+                    if rtx.send(reply).await.is_err() || stop {
+                        return;
+                    }
+                }
+            });
+            (tx, rrx)
+        }
+    };
+
+    loop {
+        let now = Instant::now();
+        let open =
+            now < plan.measure_until && (args.max_requests == 0 || count < args.max_requests);
+        if open && inflight.len() < args.pipeline && schedule.due(now) {
+            let t0 = schedule.take();
+            let mut q = Vec::with_capacity(8);
+            source.fill(&mut q);
+            let id = next_id;
+            next_id += 1;
+            count += 1;
+            let measuring = plan.measuring(t0);
+            if measuring {
+                tally.sent += 1;
+            }
+            if send_tx.send((id, q.clone())).await.is_err() {
+                tally.error("send_failed");
+                return Ok(());
+            }
+            inflight.push_back(InFlight {
+                id,
+                t0,
+                measuring,
+                q,
+            });
+            continue;
+        }
+        if inflight.is_empty() {
+            if !open {
+                return Ok(());
+            }
+            schedule.wait().await;
+            continue;
+        }
+        let reply = if open && inflight.len() < args.pipeline && schedule.interval.is_some() {
+            tokio::select! {
+                r = reply_rx.recv() => r,
+                _ = schedule.wait() => continue,
+            }
+        } else {
+            reply_rx.recv().await
+        };
+        let Some(reply) = reply else {
+            tally.error("stream_ended");
+            return Ok(());
+        };
+        let Some(head) = inflight.pop_front() else {
+            tally.error("unexpected_reply");
+            return Ok(());
+        };
+        let latency = head.t0.elapsed();
+        match reply {
+            Reply::Closed(kind) => {
+                if head.measuring {
+                    tally.error(kind);
+                }
+                return Ok(());
+            }
+            Reply::Error(id, kind) => {
+                if head.measuring {
+                    tally.answered += 1;
+                    tally.error(if id == head.id {
+                        kind
+                    } else {
+                        "out_of_order".into()
+                    });
+                }
+            }
+            Reply::Pose(id, m) => {
+                if head.measuring {
+                    tally.answered += 1;
+                    tally.record(latency);
+                    if id != head.id {
+                        tally.error("out_of_order");
+                        continue;
+                    }
+                    tally.poses += 1;
+                    if plan.args.verify
+                        && let Some(robot) = plan.robot.as_ref()
+                        && !verify_pose(robot, &head.q, &m)
+                    {
+                        tally.error("verify");
+                    }
+                }
+            }
+        }
+    }
+}
