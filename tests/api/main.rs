@@ -2,5 +2,6 @@
 mod contract;
 mod grpc;
 mod helpers;
+mod load;
 mod rest;
 mod ws;

@@ -1,0 +1,140 @@
+//! Smoke load test: the real `kinserve-load` binary against the real server on
+//! port 0, every target, with `--verify`. Asserts zero errors and that every
+//! request was answered; never a timing threshold.
+
+use crate::helpers::*;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_load_target_runs_clean_with_verification() {
+    let app = spawn_app().await;
+    let http = app.http.trim_start_matches("http://").to_string();
+    let grpc = app.grpc.trim_start_matches("http://").to_string();
+    let targets = [
+        "rest-health",
+        "rest",
+        "rest-batch",
+        "ws",
+        "grpc-health",
+        "grpc",
+        "grpc-batch",
+        "grpc-stream",
+    ];
+    for target in targets {
+        for robot in ["puma560", "stanford"] {
+            let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
+                .args([
+                    "--target",
+                    target,
+                    "--robot",
+                    robot,
+                    "--concurrency",
+                    "2",
+                    "--duration",
+                    "400ms",
+                ])
+                .args([
+                    "--warmup",
+                    "0s",
+                    "--batch-size",
+                    "50",
+                    "--pipeline",
+                    "8",
+                    "--max-requests",
+                    "200",
+                ])
+                .args([
+                    "--verify",
+                    "--json",
+                    "--http-addr",
+                    &http,
+                    "--grpc-addr",
+                    &grpc,
+                ])
+                .output()
+                .await
+                .expect("kinserve-load runs");
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(
+                out.status.success(),
+                "{target}/{robot}: exit {:?}\n{stdout}\n{}",
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let report: serde_json::Value = serde_json::from_str(&stdout).expect("JSON report");
+            let sent = report["sent"].as_u64().unwrap();
+            assert!(sent > 0, "{target}: nothing sent");
+            assert_eq!(
+                report["answered"].as_u64().unwrap(),
+                sent,
+                "{target}: unanswered requests"
+            );
+            assert_eq!(report["errors"], serde_json::json!({}), "{target}: errors");
+            assert_eq!(report["verified"], true);
+            let poses = report["poses"].as_u64().unwrap();
+            match target {
+                "rest-health" | "grpc-health" => assert_eq!(poses, 0),
+                "rest-batch" | "grpc-batch" => {
+                    assert_eq!(poses, sent * 50, "{target}: poses per batch")
+                }
+                _ => assert_eq!(poses, sent, "{target}: one pose per request"),
+            }
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn open_loop_mode_runs_and_an_unknown_robot_fails_the_run() {
+    let app = spawn_app().await;
+    let http = app.http.trim_start_matches("http://").to_string();
+    let grpc = app.grpc.trim_start_matches("http://").to_string();
+    // Open loop at a modest rate: everything sent is answered.
+    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
+        .args([
+            "--target",
+            "rest",
+            "--concurrency",
+            "2",
+            "--duration",
+            "500ms",
+            "--warmup",
+            "0s",
+            "--rate",
+            "200",
+        ])
+        .args([
+            "--verify",
+            "--json",
+            "--http-addr",
+            &http,
+            "--grpc-addr",
+            &grpc,
+        ])
+        .output()
+        .await
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["mode"], "open@200");
+    assert!(report["sent"].as_u64().unwrap() > 0);
+    // An unknown robot is an error and a non-zero exit.
+    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
+        .args([
+            "--target",
+            "grpc",
+            "--robot",
+            "no-such-robot",
+            "--duration",
+            "200ms",
+            "--warmup",
+            "0s",
+        ])
+        .args(["--http-addr", &http, "--grpc-addr", &grpc])
+        .output()
+        .await
+        .expect("runs");
+    assert!(!out.status.success());
+}
