@@ -3,6 +3,7 @@
 mod dto;
 mod extract;
 mod handlers;
+mod playground;
 pub mod problem;
 mod ws;
 
@@ -202,7 +203,9 @@ pub fn router(state: AppState) -> Router {
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route("/healthz", get(handlers::healthz))
         .route("/readyz", get(handlers::readyz))
-        .route("/metrics", get(metrics_text));
+        .route("/metrics", get(metrics_text))
+        .route("/", get(playground::index))
+        .route("/playground/{file}", get(playground::file));
     let config = state.config.clone();
     api.merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .fallback(handlers::not_found)
