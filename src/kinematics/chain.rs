@@ -1,7 +1,7 @@
 //! A compiled serial chain: DH rows with everything that does not depend on the
 //! joint values precomputed, and the forward-kinematics products over it.
 
-use super::sincos::{POLY_LIMIT, sincos_poly, sincos_slice};
+use super::sincos::{self, madd, needs_std, sincos_poly_impl};
 use super::transform::Transform;
 
 /// Which Denavit–Hartenberg convention a table is written in.
@@ -227,35 +227,94 @@ impl Chain {
     ///
     /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
+    /// Uses AVX2/FMA when the CPU has them.
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if super::sincos::simd_available() {
+                // SAFETY: the CPU supports avx2 and fma (checked just above).
+                return unsafe { self.forward_avx2(q, angle_scale) };
+            }
+        }
+        self.forward_impl::<false>(q, angle_scale)
+    }
+
+    /// Portable path of [`Chain::forward`] (no SIMD dispatch, no FMA).
+    pub fn forward_portable(&self, q: &[f64], angle_scale: f64) -> Transform {
+        self.forward_impl::<false>(q, angle_scale)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn forward_avx2(&self, q: &[f64], angle_scale: f64) -> Transform {
+        self.forward_impl::<true>(q, angle_scale)
+    }
+
+    /// The single-pose product on a column-major 4×4 (columns x, y, z, p; lane 3
+    /// unused), so each step is a handful of 4-wide vector operations.
+    #[inline(always)]
+    fn forward_impl<const FMA: bool>(&self, q: &[f64], angle_scale: f64) -> Transform {
+        const SMALL: usize = 8;
         let n = self.movable.len();
-        if n > STACK_JOINTS {
-            return self.forward_frames_into(q, angle_scale, &mut |_| {});
+        // Joint angles (θ0 + q) and their sines and cosines, computed together.
+        let mut x = [0.0f64; SMALL];
+        let mut sv = [0.0f64; SMALL];
+        let mut cv = [1.0f64; SMALL];
+        let small = n <= SMALL;
+        if small {
+            for ((dst, &i), src) in x.iter_mut().zip(&self.movable).zip(q) {
+                let l = &self.links[i];
+                *dst = match l.kind {
+                    JointKind::Revolute => madd::<FMA>(*src, angle_scale, l.theta),
+                    _ => *src,
+                };
+            }
+            for k in 0..SMALL {
+                (sv[k], cv[k]) = sincos_poly_impl::<FMA>(x[k]);
+            }
+            for k in 0..SMALL {
+                if needs_std(x[k]) {
+                    (sv[k], cv[k]) = x[k].sin_cos();
+                }
+            }
         }
-        let mut qs = [0.0f64; STACK_JOINTS];
-        let mut sq = [0.0f64; STACK_JOINTS];
-        let mut cq = [1.0f64; STACK_JOINTS];
-        for ((dst, &i), src) in qs.iter_mut().zip(&self.movable).zip(q) {
-            let l = &self.links[i];
-            *dst = match l.kind {
-                JointKind::Revolute => l.theta + *src * angle_scale,
-                _ => *src,
-            };
-        }
-        sincos_slice(&qs[..n], &mut sq[..n], &mut cq[..n]);
-        let mut t = self.base;
+        let mut c = to_cols(&self.base);
         let mut j = 0;
+        let mut qi = q.iter();
         for l in &self.links {
-            let (qj, s, c) = if l.kind == JointKind::Fixed {
-                (0.0, 0.0, 1.0)
-            } else {
-                let v = (qs[j], sq[j], cq[j]);
-                j += 1;
-                v
+            let (ct, st, d) = match l.kind {
+                JointKind::Fixed => (l.ct, l.st, l.d),
+                JointKind::Revolute => {
+                    let (s, co) = if small {
+                        (sv[j], cv[j])
+                    } else {
+                        let v =
+                            madd::<FMA>(qi.next().copied().unwrap_or(0.0), angle_scale, l.theta);
+                        if needs_std(v) {
+                            v.sin_cos()
+                        } else {
+                            sincos_poly_impl::<FMA>(v)
+                        }
+                    };
+                    j += 1;
+                    (co, s, l.d)
+                }
+                JointKind::Prismatic => {
+                    let v = if small {
+                        x[j]
+                    } else {
+                        qi.next().copied().unwrap_or(0.0)
+                    };
+                    j += 1;
+                    (l.ct, l.st, l.d + v)
+                }
             };
-            let (ct, st, d) = Self::row_values(l, qj, s, c);
-            Self::apply(self.convention, &mut t, l, ct, st, d);
+            if small {
+                let _ = qi.next();
+            }
+            apply_cols::<FMA>(self.convention, &mut c, l, ct, st, d);
         }
+        let t = from_cols(&c);
         match &self.tool {
             Some(tool) => t.compose(tool),
             None => t,
@@ -331,29 +390,34 @@ impl Chain {
                 return;
             }
         }
-        self.forward_batch_generic(q, angle_scale, out)
+        self.forward_batch_generic::<false>(q, angle_scale, out)
     }
 
     /// Portable path of [`Chain::forward_batch`] (no SIMD dispatch).
     pub fn forward_batch_portable(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
-        self.forward_batch_generic(q, angle_scale, out)
+        self.forward_batch_generic::<false>(q, angle_scale, out)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn forward_batch_avx2(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
-        self.forward_batch_generic(q, angle_scale, out)
+        self.forward_batch_generic::<true>(q, angle_scale, out)
     }
 
     #[inline(always)]
-    fn forward_batch_generic(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
+    fn forward_batch_generic<const FMA: bool>(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        out: &mut [Transform],
+    ) {
         let dof = self.movable.len();
         if dof == 0 {
             return;
         }
         if dof > STACK_JOINTS {
             for (cfg, o) in q.chunks_exact(dof).zip(out.iter_mut()) {
-                *o = self.forward(cfg, angle_scale);
+                *o = self.forward_impl::<FMA>(cfg, angle_scale);
             }
             return;
         }
@@ -364,11 +428,11 @@ impl Chain {
             if lanes < LANES {
                 for k in 0..lanes {
                     let i = start + k;
-                    out[i] = self.forward(&q[i * dof..(i + 1) * dof], angle_scale);
+                    out[i] = self.forward_impl::<FMA>(&q[i * dof..(i + 1) * dof], angle_scale);
                 }
                 break;
             }
-            self.batch_block(
+            self.batch_block::<FMA>(
                 &q[start * dof..(start + LANES) * dof],
                 angle_scale,
                 dof,
@@ -381,7 +445,13 @@ impl Chain {
     /// Eight poses in structure-of-arrays form: every scalar of the pose is a
     /// `[f64; 8]` so each step of the DH product is one vector operation.
     #[inline(always)]
-    fn batch_block(&self, q: &[f64], angle_scale: f64, dof: usize, out: &mut [Transform]) {
+    fn batch_block<const FMA: bool>(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        dof: usize,
+        out: &mut [Transform],
+    ) {
         type V = [f64; LANES];
         let mut r = [[[0.0f64; LANES]; 3]; 3];
         let mut p = [[0.0f64; LANES]; 3];
@@ -401,15 +471,15 @@ impl Chain {
                 JointKind::Revolute => {
                     let mut needs_std = false;
                     for k in 0..LANES {
-                        let x = l.theta + q[k * dof + j] * angle_scale;
-                        let (s, c) = sincos_poly(x);
+                        let x = madd::<FMA>(q[k * dof + j], angle_scale, l.theta);
+                        let (s, c) = sincos_poly_impl::<FMA>(x);
                         ct[k] = c;
                         st[k] = s;
-                        needs_std |= x.abs() > POLY_LIMIT || !x.is_finite();
+                        needs_std |= sincos::needs_std(x);
                     }
                     if needs_std {
                         for k in 0..LANES {
-                            let x = l.theta + q[k * dof + j] * angle_scale;
+                            let x = madd::<FMA>(q[k * dof + j], angle_scale, l.theta);
                             (st[k], ct[k]) = x.sin_cos();
                         }
                     }
@@ -427,12 +497,12 @@ impl Chain {
                     for row in 0..3 {
                         for k in 0..LANES {
                             let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
-                            let x = r0 * ct[k] + r1 * st[k];
-                            let y = r1 * ct[k] - r0 * st[k];
+                            let x = madd::<FMA>(r0, ct[k], r1 * st[k]);
+                            let y = madd::<FMA>(r1, ct[k], -(r0 * st[k]));
                             r[row][0][k] = x;
-                            r[row][1][k] = y * l.ca + r2 * l.sa;
-                            r[row][2][k] = r2 * l.ca - y * l.sa;
-                            p[row][k] += x * l.a + r2 * d[k];
+                            r[row][1][k] = madd::<FMA>(y, l.ca, r2 * l.sa);
+                            r[row][2][k] = madd::<FMA>(r2, l.ca, -(y * l.sa));
+                            p[row][k] = madd::<FMA>(x, l.a, madd::<FMA>(r2, d[k], p[row][k]));
                         }
                     }
                 }
@@ -440,12 +510,12 @@ impl Chain {
                     for row in 0..3 {
                         for k in 0..LANES {
                             let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
-                            let u = r1 * l.ca + r2 * l.sa;
-                            let w = r2 * l.ca - r1 * l.sa;
-                            r[row][0][k] = r0 * ct[k] + u * st[k];
-                            r[row][1][k] = u * ct[k] - r0 * st[k];
+                            let u = madd::<FMA>(r1, l.ca, r2 * l.sa);
+                            let w = madd::<FMA>(r2, l.ca, -(r1 * l.sa));
+                            r[row][0][k] = madd::<FMA>(r0, ct[k], u * st[k]);
+                            r[row][1][k] = madd::<FMA>(u, ct[k], -(r0 * st[k]));
                             r[row][2][k] = w;
-                            p[row][k] += r0 * l.a + w * d[k];
+                            p[row][k] = madd::<FMA>(r0, l.a, madd::<FMA>(w, d[k], p[row][k]));
                         }
                     }
                 }
@@ -465,4 +535,70 @@ impl Chain {
             };
         }
     }
+}
+
+/// Column-major copy of a transform: columns x, y, z of the rotation, then p; lane 3 is 0.
+#[inline(always)]
+fn to_cols(t: &Transform) -> [[f64; 4]; 4] {
+    let r = &t.rotation;
+    let p = &t.translation;
+    [
+        [r[0][0], r[1][0], r[2][0], 0.0],
+        [r[0][1], r[1][1], r[2][1], 0.0],
+        [r[0][2], r[1][2], r[2][2], 0.0],
+        [p[0], p[1], p[2], 0.0],
+    ]
+}
+
+#[inline(always)]
+fn from_cols(c: &[[f64; 4]; 4]) -> Transform {
+    Transform {
+        rotation: [
+            [c[0][0], c[1][0], c[2][0]],
+            [c[0][1], c[1][1], c[2][1]],
+            [c[0][2], c[1][2], c[2][2]],
+        ],
+        translation: [c[3][0], c[3][1], c[3][2]],
+    }
+}
+
+/// Multiplies the column-major transform `c` in place by the link matrix of `l`
+/// with the given `cos θ, sin θ, d` (see [`Chain::apply`] for the matrices).
+#[inline(always)]
+fn apply_cols<const FMA: bool>(
+    convention: Convention,
+    c: &mut [[f64; 4]; 4],
+    l: &Link,
+    ct: f64,
+    st: f64,
+    d: f64,
+) {
+    let [c0, c1, c2, p] = *c;
+    let mut n0 = [0.0; 4];
+    let mut n1 = [0.0; 4];
+    let mut n2 = [0.0; 4];
+    let mut np = [0.0; 4];
+    match convention {
+        Convention::Standard => {
+            for k in 0..4 {
+                let x = madd::<FMA>(c0[k], ct, c1[k] * st);
+                let y = madd::<FMA>(c1[k], ct, -(c0[k] * st));
+                n0[k] = x;
+                n1[k] = madd::<FMA>(y, l.ca, c2[k] * l.sa);
+                n2[k] = madd::<FMA>(c2[k], l.ca, -(y * l.sa));
+                np[k] = madd::<FMA>(x, l.a, madd::<FMA>(c2[k], d, p[k]));
+            }
+        }
+        Convention::Modified => {
+            for k in 0..4 {
+                let u = madd::<FMA>(c1[k], l.ca, c2[k] * l.sa);
+                let w = madd::<FMA>(c2[k], l.ca, -(c1[k] * l.sa));
+                n0[k] = madd::<FMA>(c0[k], ct, u * st);
+                n1[k] = madd::<FMA>(u, ct, -(c0[k] * st));
+                n2[k] = w;
+                np[k] = madd::<FMA>(c0[k], l.a, madd::<FMA>(w, d, p[k]));
+            }
+        }
+    }
+    *c = [n0, n1, n2, np];
 }

@@ -34,19 +34,53 @@ const C3: f64 = 2.480_158_728_885_170_453_48e-5;
 const C4: f64 = -1.388_888_888_887_305_641_16e-3;
 const C5: f64 = 4.166_666_666_666_659_292_18e-2;
 
+/// `a·b + c`, fused (one rounding) when `FMA` is set. Only instantiate `FMA = true`
+/// inside functions compiled with the `fma` target feature: elsewhere
+/// `f64::mul_add` becomes a slow library call.
+#[inline(always)]
+pub fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA { a.mul_add(b, c) } else { a * b + c }
+}
+
 /// Sine and cosine of one angle (rad) by the polynomial; valid for `|x| ≤ POLY_LIMIT`.
 /// Branch-free so that loops over it vectorise.
 #[inline(always)]
 pub fn sincos_poly(x: f64) -> (f64, f64) {
-    let t = x * FRAC_2_PI + ROUND_MAGIC;
+    sincos_poly_impl::<false>(x)
+}
+
+/// [`sincos_poly`] with fused multiply-adds when `FMA` (see [`madd`]).
+#[inline(always)]
+pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
+    let t = madd::<FMA>(x, FRAC_2_PI, ROUND_MAGIC);
     let quadrant = t.to_bits();
     let j = t - ROUND_MAGIC;
-    let r = ((x - j * PIO2_1) - j * PIO2_2) - j * PIO2_3;
+    let r = madd::<FMA>(
+        -j,
+        PIO2_3,
+        madd::<FMA>(-j, PIO2_2, madd::<FMA>(-j, PIO2_1, x)),
+    );
     let z = r * r;
-    let sp = ((((S0 * z + S1) * z + S2) * z + S3) * z + S4) * z + S5;
-    let s = r + r * z * sp;
-    let cp = ((((C0 * z + C1) * z + C2) * z + C3) * z + C4) * z + C5;
-    let c = 1.0 - 0.5 * z + z * z * cp;
+    let sp = madd::<FMA>(
+        madd::<FMA>(
+            madd::<FMA>(madd::<FMA>(madd::<FMA>(S0, z, S1), z, S2), z, S3),
+            z,
+            S4,
+        ),
+        z,
+        S5,
+    );
+    let s = madd::<FMA>(r * z, sp, r);
+    let cp = madd::<FMA>(
+        madd::<FMA>(
+            madd::<FMA>(madd::<FMA>(madd::<FMA>(C0, z, C1), z, C2), z, C3),
+            z,
+            C4,
+        ),
+        z,
+        C5,
+    );
+    let c = madd::<FMA>(z * z, cp, madd::<FMA>(-0.5, z, 1.0));
     let swap = quadrant & 1 != 0;
     let (s1, c1) = if swap { (c, s) } else { (s, c) };
     // quadrant 0: ( s,  c)  1: ( c, -s)  2: (-s, -c)  3: (-c,  s)
@@ -58,16 +92,22 @@ pub fn sincos_poly(x: f64) -> (f64, f64) {
     )
 }
 
+/// Whether `x` needs the `std` fallback (huge or not finite).
 #[inline(always)]
-fn sincos_slice_generic(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
+pub fn needs_std(x: f64) -> bool {
+    x.abs() > POLY_LIMIT || !x.is_finite()
+}
+
+#[inline(always)]
+fn sincos_slice_generic<const FMA: bool>(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     for ((xi, si), ci) in x.iter().zip(sin.iter_mut()).zip(cos.iter_mut()) {
-        let (s, c) = sincos_poly(*xi);
+        let (s, c) = sincos_poly_impl::<FMA>(*xi);
         *si = s;
         *ci = c;
     }
     // Rare: huge or non-finite angles take the exact std path.
     for ((xi, si), ci) in x.iter().zip(sin.iter_mut()).zip(cos.iter_mut()) {
-        if !(xi.abs() <= POLY_LIMIT) {
+        if needs_std(*xi) {
             let (s, c) = xi.sin_cos();
             *si = s;
             *ci = c;
@@ -78,7 +118,7 @@ fn sincos_slice_generic(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn sincos_slice_avx2(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
-    sincos_slice_generic(x, sin, cos)
+    sincos_slice_generic::<true>(x, sin, cos)
 }
 
 /// Whether the AVX2+FMA kernels are used on this CPU (detected once, at run time).
@@ -104,10 +144,10 @@ pub fn sincos_slice(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
             return;
         }
     }
-    sincos_slice_generic(x, sin, cos)
+    sincos_slice_generic::<false>(x, sin, cos)
 }
 
 /// Portable path of [`sincos_slice`], without any SIMD dispatch (for tests and comparison).
 pub fn sincos_slice_portable(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
-    sincos_slice_generic(x, sin, cos)
+    sincos_slice_generic::<false>(x, sin, cos)
 }

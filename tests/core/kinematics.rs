@@ -129,6 +129,7 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
                 let q = &qs[k * dof..(k + 1) * dof];
                 let reference = chain.forward_reference(q, 1.0);
                 let fast = chain.forward(q, 1.0);
+                let portable = chain.forward_portable(q, 1.0);
                 let (framed, frames) = chain.forward_frames(q, 1.0);
                 for (what, t) in [
                     ("single", fast),
