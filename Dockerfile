@@ -74,8 +74,9 @@ ARG KINSERVE_UID=10001
 ARG KINSERVE_GID=10001
 
 # The service user (fixed uid/gid, no login, no home) and its data directory.
-RUN groupadd --system --gid "${KINSERVE_GID}" kinserve \
- && useradd --system --uid "${KINSERVE_UID}" --gid "${KINSERVE_GID}" \
+# (--no-log-init: no sparse lastlog/faillog entry for the high uid.)
+RUN groupadd --gid "${KINSERVE_GID}" kinserve \
+ && useradd --no-log-init --uid "${KINSERVE_UID}" --gid "${KINSERVE_GID}" \
       --home-dir /var/lib/kinserve --no-create-home --shell /usr/sbin/nologin kinserve \
  && mkdir -p /var/lib/kinserve \
  && chown "${KINSERVE_UID}:${KINSERVE_GID}" /var/lib/kinserve \

@@ -1,4 +1,8 @@
 //! Core tests: kinematics, model validation, robot files, CLI.
+mod cli;
 mod closed_forms;
 mod kinematics;
+mod model;
+mod properties;
 mod published_poses;
+mod readme;

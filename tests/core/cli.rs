@@ -1,0 +1,112 @@
+//! The `kinserve` command line: `fk` and `validate`.
+
+use std::process::Command;
+
+fn kinserve() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_kinserve"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+#[test]
+fn fk_prints_the_rest_json_for_a_built_in() {
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "0,0,0,0,0,0"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["robot"], "puma560");
+    assert_eq!(v["length_unit"], "m");
+    let robot =
+        kinserve::model::load_robot_file(std::path::Path::new("robots/puma560.json")).unwrap();
+    let p = robot.fk_unchecked(&[0.0; 6]).position();
+    for i in 0..3 {
+        assert!((v["pose"]["position"][i].as_f64().unwrap() - p[i]).abs() < 1e-12);
+    }
+    assert!(v.get("frames").is_none());
+}
+
+#[test]
+fn fk_with_degrees_frames_and_a_model_file() {
+    let out = kinserve()
+        .args([
+            "fk",
+            "--model",
+            "robots/planar_2dof.json",
+            "--joints",
+            "90,-90",
+            "--deg",
+            "--frames",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // a1 = 0.4, a2 = 0.3: x = a1 c1 + a2 c12 = 0.3, y = a1 s1 + a2 s12 = 0.4.
+    assert!((v["pose"]["position"][0].as_f64().unwrap() - 0.3).abs() < 1e-12);
+    assert!((v["pose"]["position"][1].as_f64().unwrap() - 0.4).abs() < 1e-12);
+    assert_eq!(v["frames"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn fk_errors_go_to_stderr_with_a_non_zero_exit() {
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "0,0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("joints"));
+    let out = kinserve()
+        .args(["fk", "--robot", "../puma560", "--joints", "0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "9,0,0,0,0,0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "9 rad is outside the waist limits");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("joints[0]"));
+}
+
+#[test]
+fn validate_passes_every_robot_file_and_reports_bad_ones_by_field() {
+    let files: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/robots"))
+        .unwrap()
+        .map(|e| e.unwrap().path().display().to_string())
+        .collect();
+    let out = kinserve().arg("validate").args(&files).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"name": "bad", "convention": "standard", "links": [{"joint": "revolute", "a": 1, "alpha": 0, "d": 0, "theta": 0, "limits": [2, 1]}]}"#,
+    )
+    .unwrap();
+    let out = kinserve()
+        .arg("validate")
+        .arg(&bad)
+        .arg("robots/puma560.json")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("links[0].limits"), "{err}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("puma560.json: ok"));
+}
