@@ -32,6 +32,25 @@ use pb::kinematics_service_server::{KinematicsService, KinematicsServiceServer};
 /// Stream responses buffered per stream before the server stops reading (flow control).
 const STREAM_BUFFER: usize = 16;
 
+/// HTTP/2 receive window of one stream: what a client may send ahead on a stream
+/// the server has stopped reading (a slow reader of the FK stream).
+///
+/// h2 guards against floods of small DATA frames with a budget of framing
+/// overhead (up to 256 bytes per frame under 256 bytes) of *unread* frames, half
+/// the connection window; past it, it closes the whole connection with GOAWAY
+/// ENHANCE_YOUR_CALM. A client that streams one ~70-byte request at a time while
+/// reading slowly fills a stalled stream's window with small frames: with
+/// hyper's defaults (1 MiB stream and connection windows, budget 512 KiB) about
+/// 2,700 unread requests killed the connection instead of blocking the client.
+/// A 64 KiB stream window (the HTTP/2 default) and a 16 MiB connection window
+/// (budget 8 MiB) keep a stalled stream's worst case (~9,400 frames of 7 bytes,
+/// ~2.3 MiB of overhead) well inside the budget, so backpressure reaches the
+/// client instead.
+const STREAM_WINDOW: u32 = 64 << 10;
+
+/// HTTP/2 receive window of a connection (sets h2's small-frame budget to half of it).
+const CONNECTION_WINDOW: u32 = 16 << 20;
+
 /// The gRPC service over the shared [`Service`].
 #[derive(Clone)]
 pub struct GrpcService {
@@ -304,6 +323,8 @@ pub async fn serve(
     tonic::transport::Server::builder()
         .timeout(config.request_timeout)
         .tcp_nodelay(true)
+        .initial_stream_window_size(STREAM_WINDOW)
+        .initial_connection_window_size(CONNECTION_WINDOW)
         .http2_keepalive_interval(Some(std::time::Duration::from_secs(30)))
         .add_service(kin)
         .add_service(health_service)
