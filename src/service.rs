@@ -1,8 +1,8 @@
 //! The protocol-neutral service: what REST and gRPC both call. Adapters
 //! validate and convert their wire types, call one method here, and convert back.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
 
 use subtle::ConstantTimeEq;
 
@@ -80,6 +80,8 @@ pub struct Service {
     limits: ServiceLimits,
     ready: AtomicBool,
     token: Option<String>,
+    /// Handle of `kinserve_poses_computed_total`, resolved on first use (after the recorder is installed).
+    poses: OnceLock<metrics::Counter>,
 }
 
 impl Service {
@@ -90,6 +92,7 @@ impl Service {
             limits,
             ready: AtomicBool::new(false),
             token: token.filter(|t| !t.is_empty()),
+            poses: OnceLock::new(),
         }
     }
 
@@ -178,6 +181,11 @@ impl Service {
         Ok(())
     }
 
+    fn poses_counter(&self) -> &metrics::Counter {
+        self.poses
+            .get_or_init(|| metrics::counter!("kinserve_poses_computed_total"))
+    }
+
     /// Publishes the robot counts as gauges.
     pub fn record_robot_count(&self) {
         let (builtin, registered) = self.registry.counts();
@@ -188,7 +196,7 @@ impl Service {
     /// Checked FK of one configuration: the tool pose.
     pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
         let t = robot.fk_checked(q, opts)?;
-        metrics::counter!("kinserve_poses_computed_total").increment(1);
+        self.poses_counter().increment(1);
         Ok(t)
     }
 
@@ -200,7 +208,7 @@ impl Service {
         opts: &FkOptions,
     ) -> Result<(Transform, Vec<Transform>)> {
         let r = robot.fk_frames_checked(q, opts)?;
-        metrics::counter!("kinserve_poses_computed_total").increment(1);
+        self.poses_counter().increment(1);
         Ok(r)
     }
 
@@ -238,7 +246,7 @@ impl Service {
         robot
             .chain()
             .forward_batch(&configs.values, opts.angle_unit.to_rad(), &mut out);
-        metrics::counter!("kinserve_poses_computed_total").increment(out.len() as u64);
+        self.poses_counter().increment(out.len() as u64);
         Ok(out)
     }
 }

@@ -4,11 +4,19 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use axum::serve::ListenerExt;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use axum::Router;
+use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use hyper_util::server::conn::auto;
+use hyper_util::server::graceful::GracefulShutdown;
+use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
 use tokio::sync::{Semaphore, watch};
+use tower::ServiceExt;
 
-use crate::api::rest::{self, AppState};
+use crate::api::rest::{self, AppInner, AppState};
 use crate::config::ServeConfig;
 use crate::registry::{FileStore, Registry};
 use crate::service::Service;
@@ -117,13 +125,13 @@ impl App {
             grpc_addr,
         } = self;
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
-        let state = AppState {
+        let state = AppState::new(AppInner {
             service: service.clone(),
             config: config.clone(),
             shutdown: shutdown_tx.subscribe(),
             metrics: crate::telemetry::metrics_handle(),
             permits: permits.clone(),
-        };
+        });
         service.record_robot_count();
         let router = rest::router(state);
         let mut rx = shutdown_tx.subscribe();
@@ -141,13 +149,7 @@ impl App {
             permits,
             shutdown_tx.subscribe(),
         );
-        let mut http_rx = shutdown_tx.subscribe();
-        let http = http.tap_io(|tcp| {
-            let _ = tcp.set_nodelay(true);
-        });
-        let http_server = axum::serve(http, router).with_graceful_shutdown(async move {
-            let _ = http_rx.wait_for(|s| *s).await;
-        });
+        let http_server = serve_http(http, router, config.header_timeout, shutdown_tx.subscribe());
         service.set_ready(true);
         tracing::info!(http = %http_addr, grpc = %grpc_addr, "kinserve serving");
         let mut ready_rx = shutdown_tx.subscribe();
@@ -172,6 +174,93 @@ impl App {
         tracing::info!("kinserve stopped");
         Ok(())
     }
+}
+
+/// Serves the REST router on `listener` (HTTP/1.1 and h2c, WebSocket upgrades)
+/// until `shutdown` turns true, then waits for open connections to finish.
+///
+/// Unlike `axum::serve`, every connection must deliver its request headers within
+/// `header_timeout`: HTTP/1 connections (the first request and every later one on
+/// a kept-alive connection) through hyper's header read timeout, and any
+/// connection, whatever the protocol, must complete its first request head
+/// within that time or it is closed (a client that connects and sends nothing,
+/// or a few bytes, holds nothing for long).
+async fn serve_http(
+    listener: TcpListener,
+    router: Router,
+    header_timeout: Duration,
+    mut shutdown: watch::Receiver<bool>,
+) -> std::io::Result<()> {
+    let header_timeout = header_timeout.max(Duration::from_millis(1));
+    let mut builder = auto::Builder::new(TokioExecutor::new());
+    builder
+        .http1()
+        .timer(TokioTimer::new())
+        .header_read_timeout(header_timeout);
+    // CONNECT protocol for WebSockets over HTTP/2; pings so dead h2 peers are noticed.
+    builder
+        .http2()
+        .timer(TokioTimer::new())
+        .enable_connect_protocol()
+        .keep_alive_interval(Duration::from_secs(30));
+    let builder = Arc::new(builder);
+    let graceful = GracefulShutdown::new();
+    loop {
+        let (tcp, _peer) = tokio::select! {
+            _ = shutdown_started(&mut shutdown) => break,
+            r = listener.accept() => match r {
+                Ok(conn) => conn,
+                Err(e) => {
+                    accept_error(e).await;
+                    continue;
+                }
+            },
+        };
+        let _ = tcp.set_nodelay(true);
+        // Set by the first request that reaches the router on this connection.
+        let seen = Arc::new(AtomicBool::new(false));
+        let flag = seen.clone();
+        let service = router.clone().map_request(move |req| {
+            flag.store(true, Ordering::Release);
+            req
+        });
+        let builder = builder.clone();
+        let watcher = graceful.watcher();
+        tokio::spawn(async move {
+            let conn = builder.serve_connection_with_upgrades(
+                TokioIo::new(tcp),
+                TowerToHyperService::new(service),
+            );
+            let mut conn = std::pin::pin!(watcher.watch(conn.into_owned()));
+            tokio::select! {
+                _ = conn.as_mut() => return,
+                _ = tokio::time::sleep(header_timeout) => {}
+            }
+            if !seen.load(Ordering::Acquire) {
+                tracing::debug!("closing a connection that sent no complete request head in time");
+                return;
+            }
+            let _ = conn.await;
+        });
+    }
+    drop(listener);
+    graceful.shutdown().await;
+    Ok(())
+}
+
+/// Errors of `accept`: a connection that failed before it was accepted is
+/// skipped; anything else (e.g. out of file descriptors) is logged and retried
+/// after a pause instead of spinning.
+async fn accept_error(e: std::io::Error) {
+    use std::io::ErrorKind::{ConnectionAborted, ConnectionRefused, ConnectionReset};
+    if matches!(
+        e.kind(),
+        ConnectionAborted | ConnectionRefused | ConnectionReset
+    ) {
+        return;
+    }
+    tracing::error!(error = %e, "accept failed; retrying shortly");
+    tokio::time::sleep(Duration::from_millis(100)).await;
 }
 
 async fn os_signal() {

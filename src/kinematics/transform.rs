@@ -179,16 +179,29 @@ impl Transform {
     }
 
     /// Roll-pitch-yaw `[roll, pitch, yaw]` in rad with `R = Rz(yaw)·Ry(pitch)·Rx(roll)`,
-    /// pitch in `[-π/2, π/2]`. At gimbal lock (|pitch| = π/2) roll is reported as 0 and
-    /// the whole rotation about z goes into yaw.
+    /// pitch in `[-π/2, π/2]`, roll and yaw in `(-π, π]` (a rounding-level −π is
+    /// reported as +π, so the sign of a 1e-17 residue cannot flip the answer).
+    /// At gimbal lock (|pitch| = π/2) roll is reported as 0 and the whole rotation
+    /// about z goes into yaw.
     pub fn rpy(&self) -> [f64; 3] {
+        fn half_open(a: f64) -> f64 {
+            if a <= -std::f64::consts::PI {
+                std::f64::consts::PI
+            } else {
+                a
+            }
+        }
         let m = &self.rotation;
         let cp = (m[0][0] * m[0][0] + m[1][0] * m[1][0]).sqrt();
         let pitch = (-m[2][0]).atan2(cp);
         if cp > 1e-10 {
-            [m[2][1].atan2(m[2][2]), pitch, m[1][0].atan2(m[0][0])]
+            [
+                half_open(m[2][1].atan2(m[2][2])),
+                pitch,
+                half_open(m[1][0].atan2(m[0][0])),
+            ]
         } else {
-            [0.0, pitch, (-m[0][1]).atan2(m[1][1])]
+            [0.0, pitch, half_open((-m[0][1]).atan2(m[1][1]))]
         }
     }
 

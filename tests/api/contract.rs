@@ -1430,9 +1430,7 @@ async fn the_tool_pose_does_not_depend_on_include_frames() {
 }
 
 #[tokio::test]
-#[ignore = "bug: rpy is not canonical at ±π: panda 'ready' gives roll -π without frames and +π with \
-            include_frames (src/kinematics/transform.rs Transform::rpy takes atan2 of a ±1e-17 \
-            rounding residue; Chain::forward and forward_frames round differently)"]
+// Was a bug: rpy took atan2 of a ±1e-17 residue at roll = ±π; Transform::rpy now reports (-π, π].
 async fn rpy_does_not_depend_on_include_frames() {
     let app = spawn_app().await;
     for (what, a, b) in with_and_without_frames(&app).await {

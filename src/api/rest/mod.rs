@@ -16,6 +16,7 @@ use axum::http::{HeaderValue, Method, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use metrics::SharedString;
 use metrics_exporter_prometheus::PrometheusHandle;
 use tokio::sync::{Semaphore, watch};
 use tower_http::catch_panic::CatchPanicLayer;
@@ -33,9 +34,26 @@ use crate::config::ServeConfig;
 use crate::error::Error;
 use crate::service::Service;
 
-/// What every handler can reach.
+/// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
-pub struct AppState {
+pub struct AppState(Arc<AppInner>);
+
+impl AppState {
+    /// Wraps the shared parts.
+    pub fn new(inner: AppInner) -> AppState {
+        AppState(Arc::new(inner))
+    }
+}
+
+impl std::ops::Deref for AppState {
+    type Target = AppInner;
+    fn deref(&self) -> &AppInner {
+        &self.0
+    }
+}
+
+/// The parts of [`AppState`].
+pub struct AppInner {
     /// The shared service.
     pub service: Arc<Service>,
     /// Server configuration (limits, timeouts).
@@ -115,17 +133,74 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
     }
 }
 
+/// The route label of a matched path, without allocating for the known routes.
+fn route_label(path: Option<&MatchedPath>) -> SharedString {
+    const ROUTES: &[&str] = &[
+        "/v1/robots/{name}/fk",
+        "/v1/robots/{name}/fk/batch",
+        "/v1/robots/{name}/fk/stream",
+        "/v1/robots/{name}",
+        "/v1/robots",
+        "/healthz",
+        "/readyz",
+        "/metrics",
+        "/",
+        "/playground/{file}",
+        "/openapi.json",
+    ];
+    match path {
+        None => SharedString::const_str("unmatched"),
+        Some(m) => match ROUTES.iter().find(|r| **r == m.as_str()) {
+            Some(r) => SharedString::const_str(r),
+            None => SharedString::from(m.as_str().to_owned()),
+        },
+    }
+}
+
+fn method_label(m: &Method) -> SharedString {
+    SharedString::const_str(match *m {
+        Method::GET => "GET",
+        Method::POST => "POST",
+        Method::PUT => "PUT",
+        Method::DELETE => "DELETE",
+        Method::OPTIONS => "OPTIONS",
+        Method::HEAD => "HEAD",
+        Method::PATCH => "PATCH",
+        _ => "OTHER",
+    })
+}
+
+fn status_label(code: u16) -> SharedString {
+    const CODES: &[(u16, &str)] = &[
+        (101, "101"),
+        (200, "200"),
+        (201, "201"),
+        (204, "204"),
+        (400, "400"),
+        (401, "401"),
+        (404, "404"),
+        (405, "405"),
+        (409, "409"),
+        (413, "413"),
+        (415, "415"),
+        (422, "422"),
+        (500, "500"),
+        (503, "503"),
+        (507, "507"),
+    ];
+    match CODES.iter().find(|(c, _)| *c == code) {
+        Some((_, s)) => SharedString::const_str(s),
+        None => SharedString::from(code.to_string()),
+    }
+}
+
 /// Counts requests by route and status and records their latency.
 async fn record_metrics(req: Request, next: Next) -> Response {
     let start = Instant::now();
-    let route = req
-        .extensions()
-        .get::<MatchedPath>()
-        .map(|m| m.as_str().to_owned())
-        .unwrap_or_else(|| "unmatched".to_owned());
-    let method = req.method().as_str().to_owned();
+    let route = route_label(req.extensions().get::<MatchedPath>());
+    let method = method_label(req.method());
     let resp = next.run(req).await;
-    let status = resp.status().as_u16().to_string();
+    let status = status_label(resp.status().as_u16());
     metrics::counter!("kinserve_http_requests_total", "method" => method.clone(), "route" => route.clone(), "status" => status)
         .increment(1);
     metrics::histogram!("kinserve_http_request_duration_seconds", "method" => method, "route" => route)
