@@ -1,4 +1,5 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
+mod browser;
 mod contract;
 mod grpc;
 mod helpers;

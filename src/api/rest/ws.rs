@@ -5,6 +5,7 @@ use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
+use futures_util::{FutureExt, SinkExt};
 
 use super::AppState;
 use super::dto::{PosesSer, WsIdOnly, WsReply, WsRequest};
@@ -68,7 +69,7 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
     let mut shutdown = state.shutdown.clone();
     let idle = state.config.stream_idle_timeout;
     loop {
-        let msg = tokio::select! {
+        let first = tokio::select! {
             _ = crate::startup::shutdown_started(&mut shutdown) => {
                 close(&mut socket, "server shutting down").await;
                 return;
@@ -82,18 +83,37 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
                 Ok(Some(Ok(m))) => m,
             }
         };
-        let reply = match msg {
-            Message::Text(t) => answer(&state, &name, t.as_bytes()),
-            Message::Binary(_) => error_reply(
-                &serde_json::Value::Null,
-                &Error::UnsupportedMediaType {
-                    detail: "binary messages are not supported; send JSON text".into(),
-                },
-            ),
-            Message::Ping(_) | Message::Pong(_) => continue,
-            Message::Close(_) => return,
-        };
-        if socket.send(Message::Text(reply.into())).await.is_err() {
+        // Answer this message and every one already received, then flush once:
+        // a pipelining client gets its replies in one write instead of one each.
+        let mut next = Some(first);
+        while let Some(msg) = next.take() {
+            let reply = match msg {
+                Message::Text(t) => Some(answer(&state, &name, t.as_bytes())),
+                Message::Binary(_) => Some(error_reply(
+                    &serde_json::Value::Null,
+                    &Error::UnsupportedMediaType {
+                        detail: "binary messages are not supported; send JSON text".into(),
+                    },
+                )),
+                Message::Ping(_) | Message::Pong(_) => None,
+                Message::Close(_) => return,
+            };
+            if let Some(reply) = reply
+                && socket.feed(Message::Text(reply.into())).await.is_err()
+            {
+                return;
+            }
+            // `recv` is cancel-safe: a message not ready now stays queued.
+            next = match socket.recv().now_or_never() {
+                Some(Some(Ok(m))) => Some(m),
+                Some(None) | Some(Some(Err(_))) => {
+                    let _ = socket.flush().await;
+                    return;
+                }
+                None => None,
+            };
+        }
+        if socket.flush().await.is_err() {
             return;
         }
     }
