@@ -82,6 +82,36 @@ async fn grpc_client(
     Ok(KinematicsServiceClient::new(ch).max_decoding_message_size(usize::MAX))
 }
 
+#[derive(serde::Serialize)]
+struct SingleBody<'a> {
+    joints: &'a [f64],
+}
+
+#[derive(serde::Serialize)]
+struct BatchBody<'a> {
+    configurations: Vec<&'a [f64]>,
+}
+
+/// Just the matrix of a pose.
+#[derive(serde::Deserialize)]
+struct MatrixOnly {
+    matrix: [[f64; 4]; 4],
+}
+
+#[derive(serde::Deserialize)]
+struct SingleReply {
+    pose: MatrixOnly,
+}
+
+#[derive(serde::Deserialize)]
+struct BatchReply {
+    poses: Vec<MatrixOnly>,
+}
+
+fn flat(m: &[[f64; 4]; 4]) -> Vec<f64> {
+    m.iter().flatten().copied().collect()
+}
+
 fn json_matrix16(pose: &serde_json::Value) -> Vec<f64> {
     pose["matrix"]
         .as_array()
@@ -178,27 +208,38 @@ async fn unary_worker(
                 let (url, body) = if args.target == Target::Rest {
                     (
                         format!("http://{}/v1/robots/{}/fk", args.http_addr, args.robot),
-                        serde_json::json!({ "joints": q }),
+                        serde_json::to_vec(&SingleBody { joints: &q }),
                     )
                 } else {
-                    let configs: Vec<&[f64]> = q.chunks(dof.max(1)).collect();
+                    let configurations: Vec<&[f64]> = q.chunks(dof.max(1)).collect();
                     (
                         format!(
                             "http://{}/v1/robots/{}/fk/batch",
                             args.http_addr, args.robot
                         ),
-                        serde_json::json!({ "configurations": configs }),
+                        serde_json::to_vec(&BatchBody { configurations }),
                     )
                 };
-                match http.post(url).json(&body).send().await {
-                    Ok(r) if r.status().is_success() => match r.json::<serde_json::Value>().await {
-                        Ok(v) if args.target == Target::Rest => Ok(vec![json_matrix16(&v["pose"])]),
-                        Ok(v) => Ok(v["poses"]
-                            .as_array()
-                            .map(|a| a.iter().map(json_matrix16).collect())
-                            .unwrap_or_default()),
-                        Err(_) => Err("decode".into()),
-                    },
+                let body = body.map_err(|e| e.to_string())?;
+                let request = http
+                    .post(url)
+                    .header(reqwest::header::CONTENT_TYPE, "application/json")
+                    .body(body);
+                match request.send().await {
+                    Ok(r) if r.status().is_success() => {
+                        // Typed decoding: only the matrices are kept (cheap on the client,
+                        // which shares the machine with the server).
+                        let bytes = r.bytes().await.unwrap_or_default();
+                        if args.target == Target::Rest {
+                            serde_json::from_slice::<SingleReply>(&bytes)
+                                .map(|v| vec![flat(&v.pose.matrix)])
+                                .map_err(|_| "decode".to_string())
+                        } else {
+                            serde_json::from_slice::<BatchReply>(&bytes)
+                                .map(|v| v.poses.iter().map(|p| flat(&p.matrix)).collect())
+                                .map_err(|_| "decode".to_string())
+                        }
+                    }
                     Ok(r) => Err(format!("http_{}", r.status().as_u16())),
                     Err(_) => Err("transport".into()),
                 }
