@@ -18,7 +18,10 @@ pub struct TestApp {
     /// HTTP client.
     pub client: reqwest::Client,
     /// The data directory (kept alive as long as the app).
-    #[allow(dead_code, reason = "for tests that inspect or damage the data directory")]
+    #[allow(
+        dead_code,
+        reason = "for tests that inspect or damage the data directory"
+    )]
     pub data_dir: PathBuf,
     _tmp: Option<tempfile::TempDir>,
     shutdown: ShutdownHandle,
