@@ -1,5 +1,9 @@
 //! A compiled serial chain: DH rows with everything that does not depend on the
 //! joint values precomputed, and the forward-kinematics products over it.
+#![allow(
+    clippy::needless_range_loop,
+    reason = "matrix code reads best with explicit row/column indices"
+)]
 
 use super::sincos::{self, madd, needs_std, sincos_poly_impl};
 use super::transform::Transform;

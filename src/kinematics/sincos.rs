@@ -8,6 +8,9 @@
 //! larger or non-finite inputs fall back to `f64::sin_cos` itself, so the
 //! function is exact-as-std everywhere else.
 
+// The constants below are published ones, kept digit for digit as printed (fdlibm, Cephes).
+#![allow(clippy::excessive_precision)]
+
 /// Inputs with magnitude above this (rad) use `f64::sin_cos`.
 pub const POLY_LIMIT: f64 = 1.0e5;
 

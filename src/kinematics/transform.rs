@@ -1,5 +1,9 @@
 //! Rigid transforms (rotation + translation) and their conversions: 4×4 matrix,
 //! unit quaternion and roll-pitch-yaw.
+#![allow(
+    clippy::needless_range_loop,
+    reason = "matrix code reads best with explicit row/column indices"
+)]
 
 use std::ops::Mul;
 
@@ -101,12 +105,16 @@ impl Transform {
     }
 
     /// Translation `[x,y,z]` and rotation from a quaternion `[w,x,y,z]`, normalised here.
-    /// Returns `None` for a zero or non-finite quaternion.
+    /// Returns `None` for a zero or non-finite quaternion. Any other magnitude is
+    /// fine: the components are scaled by the largest one before normalising, so
+    /// neither `1e200` nor `1e-200` overflows or underflows.
     pub fn from_translation_quaternion(t: [f64; 3], q: [f64; 4]) -> Option<Transform> {
-        let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-        if !n.is_finite() || n < 1e-12 {
+        let big = q.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        if !big.is_finite() || q.iter().any(|c| c.is_nan()) || big == 0.0 {
             return None;
         }
+        let q = q.map(|c| c / big);
+        let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
         let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
         Some(Transform {
             rotation: [

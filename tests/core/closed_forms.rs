@@ -17,6 +17,10 @@
 //! `1e-9 * reach` on positions, where `reach` is the size of the arm in its own
 //! length unit (sum of |a|, |d| and the largest strokes), i.e. 1e-9 relative to
 //! the arm size.
+#![allow(
+    clippy::needless_range_loop,
+    reason = "matrix code reads best with explicit row/column indices"
+)]
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;

@@ -133,6 +133,7 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
                 let (framed, frames) = chain.forward_frames(q, 1.0);
                 for (what, t) in [
                     ("single", fast),
+                    ("portable single", portable),
                     ("batch", batch[k]),
                     ("portable batch", batch_portable[k]),
                     ("frames", framed),
