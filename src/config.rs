@@ -113,8 +113,9 @@ pub fn parse_duration(s: &str) -> Result<Duration, String> {
     Ok(Duration::from_secs_f64(secs))
 }
 
-/// Configuration of `kinserve serve`.
-#[derive(Clone, Debug, Args)]
+/// Configuration of `kinserve serve`. Its `Debug` output never shows the API
+/// token (only whether one is set), so the configuration can be logged.
+#[derive(Clone, Args)]
 pub struct ServeConfig {
     /// REST listener (port 0 picks a free port).
     #[arg(long, env = "KINSERVE_HTTP_ADDR", default_value = "0.0.0.0:8080")]
@@ -173,6 +174,49 @@ pub struct ServeConfig {
     pub shutdown_timeout: Duration,
 }
 
+impl std::fmt::Debug for ServeConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ServeConfig {
+            http_addr,
+            grpc_addr,
+            robots_dir,
+            data_dir,
+            api_token,
+            cors_origins,
+            log_format,
+            max_batch,
+            max_joints,
+            max_links,
+            max_body_bytes,
+            max_batch_body_bytes,
+            max_concurrent_requests,
+            request_timeout,
+            header_timeout,
+            stream_idle_timeout,
+            shutdown_timeout,
+        } = self;
+        f.debug_struct("ServeConfig")
+            .field("http_addr", http_addr)
+            .field("grpc_addr", grpc_addr)
+            .field("robots_dir", robots_dir)
+            .field("data_dir", data_dir)
+            .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
+            .field("cors_origins", cors_origins)
+            .field("log_format", log_format)
+            .field("max_batch", max_batch)
+            .field("max_joints", max_joints)
+            .field("max_links", max_links)
+            .field("max_body_bytes", max_body_bytes)
+            .field("max_batch_body_bytes", max_batch_body_bytes)
+            .field("max_concurrent_requests", max_concurrent_requests)
+            .field("request_timeout", request_timeout)
+            .field("header_timeout", header_timeout)
+            .field("stream_idle_timeout", stream_idle_timeout)
+            .field("shutdown_timeout", shutdown_timeout)
+            .finish()
+    }
+}
+
 impl Default for ServeConfig {
     fn default() -> Self {
         #[derive(Parser)]
@@ -219,5 +263,19 @@ impl ServeConfig {
             },
             max_batch: self.max_batch,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn debug_output_hides_the_token() {
+        let mut c = ServeConfig::for_tests("data".into());
+        c.api_token = Some("s3cr3t-value".into());
+        let shown = format!("{c:?} {:?}", Command::Serve(Box::new(c.clone())));
+        assert!(!shown.contains("s3cr3t-value"), "{shown}");
+        assert!(shown.contains("<redacted>"), "{shown}");
     }
 }

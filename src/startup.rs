@@ -149,7 +149,13 @@ impl App {
             permits,
             shutdown_tx.subscribe(),
         );
-        let http_server = serve_http(http, router, config.header_timeout, shutdown_tx.subscribe());
+        let http_server = serve_http(
+            http,
+            router,
+            config.header_timeout,
+            config.max_batch_body_bytes,
+            shutdown_tx.subscribe(),
+        );
         service.set_ready(true);
         tracing::info!(http = %http_addr, grpc = %grpc_addr, "kinserve serving");
         let mut ready_rx = shutdown_tx.subscribe();
@@ -160,7 +166,7 @@ impl App {
             svc.set_ready(false);
             tracing::info!("shutdown requested: draining");
         });
-        let both = async { tokio::try_join!(async { http_server.await }, grpc_server) };
+        let both = async { tokio::try_join!(http_server.into_future(), grpc_server) };
         let mut deadline_rx = shutdown_tx.subscribe();
         tokio::select! {
             r = both => { r?; }
@@ -185,10 +191,15 @@ impl App {
 /// connection, whatever the protocol, must complete its first request head
 /// within that time or it is closed (a client that connects and sends nothing,
 /// or a few bytes, holds nothing for long).
+///
+/// Connections close with a lingering close (see [`Lingering`]), so that a
+/// client still sending a body the server refused (503 overloaded, 413 too
+/// large) receives the answer instead of a connection reset.
 async fn serve_http(
     listener: TcpListener,
     router: Router,
     header_timeout: Duration,
+    max_body_bytes: usize,
     mut shutdown: watch::Receiver<bool>,
 ) -> std::io::Result<()> {
     let header_timeout = header_timeout.max(Duration::from_millis(1));
@@ -228,7 +239,7 @@ async fn serve_http(
         let watcher = graceful.watcher();
         tokio::spawn(async move {
             let conn = builder.serve_connection_with_upgrades(
-                TokioIo::new(tcp),
+                TokioIo::new(Lingering::new(tcp, max_body_bytes)),
                 TowerToHyperService::new(service),
             );
             let mut conn = std::pin::pin!(watcher.watch(conn.into_owned()));
@@ -246,6 +257,135 @@ async fn serve_http(
     drop(listener);
     graceful.shutdown().await;
     Ok(())
+}
+
+/// Longest a closed connection keeps reading what its client still sends.
+const LINGER_TIME: Duration = Duration::from_secs(2);
+
+/// A server-side TCP connection with a lingering close.
+///
+/// When the server answers before reading the whole request body (a request
+/// refused with 503 or 413) and then closes, the kernel answers the unread
+/// bytes with a reset, which can destroy the answer before the client has read
+/// it: the client sees "connection reset" or "broken pipe", not the status.
+/// So once a connection that sent something is dropped, its write side is
+/// shut down (FIN after the complete answer) and what the client still sends
+/// is read and discarded, for at most [`LINGER_TIME`] and `max_bytes`, before
+/// the socket is closed. Connections that never sent anything (e.g. closed for
+/// a header timeout) close at once.
+struct Lingering {
+    tcp: Option<tokio::net::TcpStream>,
+    wrote: bool,
+    max_bytes: usize,
+}
+
+impl Lingering {
+    fn new(tcp: tokio::net::TcpStream, max_bytes: usize) -> Lingering {
+        Lingering {
+            tcp: Some(tcp),
+            wrote: false,
+            max_bytes,
+        }
+    }
+
+    fn closed() -> std::io::Error {
+        std::io::Error::from(std::io::ErrorKind::NotConnected)
+    }
+}
+
+impl tokio::io::AsyncRead for Lingering {
+    fn poll_read(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        match self.get_mut().tcp.as_mut() {
+            Some(tcp) => std::pin::Pin::new(tcp).poll_read(cx, buf),
+            None => std::task::Poll::Ready(Err(Lingering::closed())),
+        }
+    }
+}
+
+impl tokio::io::AsyncWrite for Lingering {
+    fn poll_write(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        let this = self.get_mut();
+        this.wrote = true;
+        match this.tcp.as_mut() {
+            Some(tcp) => std::pin::Pin::new(tcp).poll_write(cx, buf),
+            None => std::task::Poll::Ready(Err(Lingering::closed())),
+        }
+    }
+
+    fn poll_write_vectored(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        bufs: &[std::io::IoSlice<'_>],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        let this = self.get_mut();
+        this.wrote = true;
+        match this.tcp.as_mut() {
+            Some(tcp) => std::pin::Pin::new(tcp).poll_write_vectored(cx, bufs),
+            None => std::task::Poll::Ready(Err(Lingering::closed())),
+        }
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.tcp.as_ref().is_some_and(|t| t.is_write_vectored())
+    }
+
+    fn poll_flush(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        match self.get_mut().tcp.as_mut() {
+            Some(tcp) => std::pin::Pin::new(tcp).poll_flush(cx),
+            None => std::task::Poll::Ready(Ok(())),
+        }
+    }
+
+    fn poll_shutdown(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        match self.get_mut().tcp.as_mut() {
+            Some(tcp) => std::pin::Pin::new(tcp).poll_shutdown(cx),
+            None => std::task::Poll::Ready(Ok(())),
+        }
+    }
+}
+
+impl Drop for Lingering {
+    fn drop(&mut self) {
+        let Some(mut tcp) = self.tcp.take() else {
+            return;
+        };
+        if !self.wrote {
+            return;
+        }
+        let Ok(runtime) = tokio::runtime::Handle::try_current() else {
+            return;
+        };
+        let max_bytes = self.max_bytes;
+        runtime.spawn(async move {
+            use tokio::io::{AsyncReadExt, AsyncWriteExt};
+            let _ = tcp.shutdown().await;
+            let mut buf = vec![0u8; 16 << 10];
+            let mut read = 0usize;
+            let _ = tokio::time::timeout(LINGER_TIME, async {
+                while read < max_bytes {
+                    match tcp.read(&mut buf).await {
+                        Ok(0) | Err(_) => break,
+                        Ok(n) => read += n,
+                    }
+                }
+            })
+            .await;
+        });
+    }
 }
 
 /// Errors of `accept`: a connection that failed before it was accepted is

@@ -24,6 +24,12 @@ pub const RIGID_TOLERANCE: f64 = 1e-6;
 pub const MAX_TEXT_CHARS: usize = 4096;
 /// Longest link name accepted (characters).
 pub const MAX_LINK_NAME_CHARS: usize = 64;
+/// Largest magnitude accepted for a model's DH parameters (`a`, `d`, `alpha`,
+/// `theta`), base/tool translations and prismatic limits, and for prismatic
+/// joint values in FK requests: 1e9 in the model's own units (m or mm, rad or
+/// deg). With at most a few hundred rows every pose then stays many orders of
+/// magnitude below `f64::MAX`, so FK never overflows to infinity or NaN.
+pub const MAX_MAGNITUDE: f64 = 1e9;
 
 /// Limits on model size, configurable at start-up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -114,8 +120,35 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
     Ok(value)
 }
 
+/// Longest field path reported for a JSON error (characters); longer ones are cut.
+const MAX_PATH_CHARS: usize = 200;
+/// Longest JSON error message reported (characters); longer ones are cut.
+const MAX_MESSAGE_CHARS: usize = 300;
+
+/// `s` cut to `max` characters, with `…` when something was cut (client text
+/// echoed in an error stays small however large the input was).
+fn clip(s: String, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        None => s,
+        Some((i, _)) => {
+            let mut cut = s;
+            cut.truncate(i);
+            cut.push('…');
+            cut
+        }
+    }
+}
+
 fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> Error {
     let mut path = e.path().to_string();
+    // serde_path_to_error writes `?` for a map key it could not read (e.g. a
+    // single-quoted key) and `.` for the document itself: neither is a field.
+    while path == "?" || path.ends_with(".?") {
+        path.truncate(path.len() - 1);
+        if path.ends_with('.') {
+            path.pop();
+        }
+    }
     if path == "." {
         path.clear();
     }
@@ -126,7 +159,8 @@ fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> Error {
         message.truncate(i);
     }
     let structural = message.starts_with("unknown field") || message.starts_with("missing field");
-    if structural && let Some(field) = message.split('`').nth(1) {
+    let names_a_field = structural || message.starts_with("duplicate field");
+    if names_a_field && let Some(field) = message.split('`').nth(1) {
         let already = path.rsplit('.').next() == Some(field);
         if !already {
             path = if path.is_empty() {
@@ -136,7 +170,7 @@ fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> Error {
             };
         }
     }
-    let v = FieldViolation::new(path, message);
+    let v = FieldViolation::new(clip(path, MAX_PATH_CHARS), clip(message, MAX_MESSAGE_CHARS));
     match inner.classify() {
         serde_json::error::Category::Data if structural => Error::invalid(vec![v]),
         _ => Error::Malformed {
@@ -162,6 +196,19 @@ fn check_finite(v: &mut Vec<FieldViolation>, field: impl FnOnce() -> String, x: 
     }
 }
 
+/// Finite and at most [`MAX_MAGNITUDE`] in magnitude.
+fn check_bounded(v: &mut Vec<FieldViolation>, field: impl FnOnce() -> String, x: f64) {
+    if !x.is_finite() {
+        v.push(FieldViolation::new(field(), "must be a finite number"));
+    } else if x.abs() > MAX_MAGNITUDE {
+        v.push(FieldViolation::new(field(), magnitude_message()));
+    }
+}
+
+fn magnitude_message() -> String {
+    format!("must be at most {MAX_MAGNITUDE:e} in magnitude (model units)")
+}
+
 /// Validates a base/tool spec and converts it (angles to rad).
 fn transform_from_spec(
     t: &TransformSpec,
@@ -182,6 +229,14 @@ fn transform_from_spec(
                 check_finite(v, || format!("{field}.matrix[{i}][{j}]"), *x);
             }
         }
+        for (i, row) in m.iter().take(3).enumerate() {
+            if row[3].abs() > MAX_MAGNITUDE {
+                v.push(FieldViolation::new(
+                    format!("{field}.matrix[{i}][3]"),
+                    magnitude_message(),
+                ));
+            }
+        }
         if v.len() > before {
             return Transform::IDENTITY;
         }
@@ -200,8 +255,13 @@ fn transform_from_spec(
                     "rotation part is not a rigid rotation (orthonormal with det +1 within {RIGID_TOLERANCE:e}; off by {err:.3e})"
                 ),
             ));
+            return tr;
         }
-        return tr;
+        // Accepted within the tolerance: use the nearest exact rotation (through
+        // its unit quaternion), so that base and tool errors cannot add up to a
+        // non-rigid pose.
+        return Transform::from_translation_quaternion(tr.translation, tr.quaternion())
+            .unwrap_or(tr);
     }
     if t.rpy.is_some() && t.quaternion.is_some() {
         v.push(FieldViolation::new(
@@ -211,7 +271,7 @@ fn transform_from_spec(
     }
     let translation = t.translation.unwrap_or([0.0; 3]);
     for (i, x) in translation.iter().enumerate() {
-        check_finite(v, || format!("{field}.translation[{i}]"), *x);
+        check_bounded(v, || format!("{field}.translation[{i}]"), *x);
     }
     if let Some(rpy) = t.rpy {
         for (i, x) in rpy.iter().enumerate() {
@@ -310,7 +370,7 @@ impl Robot {
                 ("d", l.d),
                 ("theta", l.theta),
             ] {
-                check_finite(&mut v, || f(name), x);
+                check_bounded(&mut v, || f(name), x);
             }
             if let Some(name) = &l.name
                 && name.chars().count() > MAX_LINK_NAME_CHARS
@@ -346,6 +406,15 @@ impl Robot {
                     v.push(FieldViolation::new(
                         f("limits"),
                         format!("lower limit {lo} is above upper limit {hi}"),
+                    ));
+                } else if kind == JointKind::Prismatic
+                    && (lo.abs() > MAX_MAGNITUDE || hi.abs() > MAX_MAGNITUDE)
+                {
+                    v.push(FieldViolation::new(
+                        f("limits"),
+                        format!(
+                            "prismatic limits must be within ±{MAX_MAGNITUDE:e} (model length unit)"
+                        ),
                     ));
                 } else {
                     lim = Some((lo * scale, hi * scale));
@@ -429,7 +498,8 @@ impl Robot {
         self.spec.length_unit
     }
 
-    /// Checks a joint vector: count, finiteness and (if asked) limits.
+    /// Checks a joint vector: count, finiteness, prismatic values within
+    /// ±[`MAX_MAGNITUDE`] and (if asked) limits.
     /// Field paths are `joints[i]`.
     pub fn check_joints(&self, q: &[f64], opts: &FkOptions) -> Result<()> {
         self.check_joints_at(q, opts, || "joints".to_string())
@@ -460,6 +530,15 @@ impl Robot {
                 return Err(Error::invalid_field(
                     format!("{}[{i}]", field()),
                     "must be a finite number",
+                ));
+            }
+            if j.kind == JointKind::Prismatic && x.abs() > MAX_MAGNITUDE {
+                let unit = self.spec.length_unit.as_str();
+                return Err(Error::invalid_field(
+                    format!("{}[{i}]", field()),
+                    format!(
+                        "{x} {unit} is beyond ±{MAX_MAGNITUDE:e} {unit}, the largest prismatic joint value accepted"
+                    ),
                 ));
             }
             if !opts.check_limits {

@@ -1,8 +1,10 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
 mod browser;
 mod contract;
+mod crash;
 mod grpc;
 mod helpers;
+mod hostile;
 mod load;
 mod rest;
 mod ws;

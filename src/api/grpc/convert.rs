@@ -112,8 +112,8 @@ fn transform_from_pb(
                 ));
             } else {
                 let mut mm = [[0.0; 4]; 4];
-                for (k, x) in m.values.iter().enumerate() {
-                    mm[k / 4][k % 4] = *x;
+                for (slot, x) in mm.iter_mut().flatten().zip(&m.values) {
+                    *slot = *x;
                 }
                 out.matrix = Some(mm);
             }

@@ -248,7 +248,17 @@ impl KinematicsService for GrpcService {
                         return;
                     }
                 };
-                let resp = match this.fk_one(&msg.robot, &msg.joints, msg.options.as_ref()) {
+                // A bug (panic) while answering ends the stream with INTERNAL, not
+                // with a clean end of stream the client would take for success.
+                let answer = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    this.fk_one(&msg.robot, &msg.joints, msg.options.as_ref())
+                }));
+                let Ok(answer) = answer else {
+                    tracing::error!("FK stream handler panicked");
+                    let _ = tx.send(Err(Status::from(panicked()))).await;
+                    return;
+                };
+                let resp = match answer {
                     Ok((pose, frames, unit)) => pb::StreamForwardKinematicsResponse {
                         id: msg.id,
                         result: Some(pb::stream_forward_kinematics_response::Result::Pose(pose)),
@@ -272,6 +282,27 @@ impl KinematicsService for GrpcService {
         });
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
+}
+
+/// The error a caught panic is answered with (its message stays in the log).
+fn panicked() -> Error {
+    Error::Internal {
+        detail: "the handler failed unexpectedly; this is a bug".into(),
+    }
+}
+
+/// The answer to a request whose handler panicked: INTERNAL (trailers-only),
+/// logged; the server and the connection's other calls go on.
+fn panic_response(
+    err: Box<dyn std::any::Any + Send + 'static>,
+) -> tonic::codegen::http::Response<tonic::body::Body> {
+    let detail = err
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| err.downcast_ref::<&str>().copied())
+        .unwrap_or("panic");
+    tracing::error!(panic = detail, "gRPC handler panicked");
+    Status::from(panicked()).into_http()
 }
 
 /// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` turns true.
@@ -310,8 +341,9 @@ pub async fn serve(
     })
     .max_decoding_message_size(max_message)
     .max_encoding_message_size(usize::MAX);
-    // Oversized messages: RESOURCE_EXHAUSTED, not tonic's OUT_OF_RANGE.
-    let kin = oversize::OversizedIsResourceExhausted(kin);
+    // Oversized messages: RESOURCE_EXHAUSTED, not tonic's OUT_OF_RANGE; undecodable
+    // ones INVALID_ARGUMENT, not INTERNAL; unknown methods named.
+    let kin = oversize::WireErrorStatuses(kin);
     let mut shutdown_rx = shutdown;
     // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to listeners it binds).
     let incoming = TcpListenerStream::new(listener).map(|s| {
@@ -321,6 +353,9 @@ pub async fn serve(
     });
     let health_on_stop = health.clone();
     tonic::transport::Server::builder()
+        .layer(tower_http::catch_panic::CatchPanicLayer::custom(
+            panic_response,
+        ))
         .timeout(config.request_timeout)
         .tcp_nodelay(true)
         .initial_stream_window_size(STREAM_WINDOW)
@@ -341,4 +376,34 @@ pub async fn serve(
         })
         .await
         .map_err(std::io::Error::other)
+}
+
+#[cfg(test)]
+mod tests {
+    use tonic::codegen::http;
+    use tower::{Layer, ServiceExt};
+
+    use super::panic_response;
+
+    /// A panicking handler behind the server's panic layer: a trailers-only
+    /// INTERNAL answer with a message that does not repeat the panic.
+    #[tokio::test]
+    async fn a_panicking_call_is_answered_internal() {
+        let svc = tower_http::catch_panic::CatchPanicLayer::custom(panic_response).layer(
+            tower::service_fn(|_req: http::Request<tonic::body::Body>| async move {
+                if true {
+                    panic!("boom: secret detail");
+                }
+                Ok::<_, std::convert::Infallible>(http::Response::new(tonic::body::Body::empty()))
+            }),
+        );
+        let resp = svc
+            .oneshot(http::Request::new(tonic::body::Body::empty()))
+            .await
+            .unwrap();
+        assert_eq!(resp.headers()["grpc-status"], "13");
+        let message = resp.headers()["grpc-message"].to_str().unwrap();
+        assert!(message.contains("internal"), "{message}");
+        assert!(!message.contains("boom"), "{message}");
+    }
 }

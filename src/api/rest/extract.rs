@@ -3,6 +3,7 @@
 
 use axum::extract::{FromRequest, FromRequestParts, Path, Request};
 use axum::http::{header, request::Parts};
+use axum::response::{IntoResponse, Response};
 use serde::de::DeserializeOwned;
 
 use super::AppState;
@@ -16,9 +17,23 @@ use crate::model::parse_json;
 pub struct JsonBody<T>(pub T);
 
 impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
-    type Rejection = ApiError;
+    type Rejection = Response;
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
+        let unread = super::has_body(req.headers());
+        Self::read(req, state).await.map_err(|e| {
+            // Refused before the whole body was read: close the connection after the answer.
+            let early = matches!(
+                e,
+                Error::UnsupportedMediaType { .. } | Error::TooLarge { .. }
+            );
+            super::refuse_unread(unread && early, ApiError(e).into_response())
+        })
+    }
+}
+
+impl<T: DeserializeOwned> JsonBody<T> {
+    async fn read(req: Request, state: &AppState) -> Result<Self, Error> {
         let content_type = req
             .headers()
             .get(header::CONTENT_TYPE)
@@ -38,8 +53,20 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
                     "expected Content-Type application/json, got '{}'",
                     content_type.chars().take(100).collect::<String>()
                 ),
+            });
+        }
+        // No request compression is supported: a compressed body is refused
+        // as such (RFC 9110 §15.5.16), never decoded (no gzip bombs) nor read as JSON.
+        if let Some(coding) = req.headers().get(header::CONTENT_ENCODING) {
+            let coding = coding.to_str().unwrap_or("?").trim();
+            if !coding.eq_ignore_ascii_case("identity") {
+                return Err(Error::UnsupportedMediaType {
+                    detail: format!(
+                        "Content-Encoding '{}' is not supported; send the body uncompressed",
+                        coding.chars().take(100).collect::<String>()
+                    ),
+                });
             }
-            .into());
         }
         let limit = if req.uri().path().ends_with("/fk/batch") {
             state.config.max_batch_body_bytes

@@ -105,6 +105,26 @@ async fn metrics_text(State(state): State<AppState>) -> Response {
         .into_response()
 }
 
+/// Whether a request announces a body (which an early refusal leaves unread).
+pub(crate) fn has_body(headers: &header::HeaderMap) -> bool {
+    headers.contains_key(header::TRANSFER_ENCODING)
+        || headers
+            .get(header::CONTENT_LENGTH)
+            .is_some_and(|v| v.as_bytes() != b"0")
+}
+
+/// An answer given before the request body was read: the connection is closed
+/// after it (`Connection: close`), since the unread rest of the body cannot be
+/// told apart from a next request; the client learns not to reuse it instead
+/// of failing its next request on a connection the server is closing.
+pub(crate) fn refuse_unread(body_unread: bool, mut resp: Response) -> Response {
+    if body_unread {
+        resp.headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
+    }
+    resp
+}
+
 /// Requires the bearer token on mutating methods (when one is configured).
 async fn require_token(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let mutating = matches!(
@@ -112,7 +132,7 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
         Method::POST | Method::PUT | Method::DELETE | Method::PATCH
     );
     if mutating && let Err(e) = state.service.authorize(extract::bearer(req.headers())) {
-        return ApiError(e).into_response();
+        return refuse_unread(has_body(req.headers()), ApiError(e).into_response());
     }
     next.run(req).await
 }
@@ -122,7 +142,10 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
 async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
-        return ApiError(Error::Overloaded).into_response();
+        return refuse_unread(
+            has_body(req.headers()),
+            ApiError(Error::Overloaded).into_response(),
+        );
     };
     match tokio::time::timeout(state.config.request_timeout, next.run(req)).await {
         Ok(resp) => resp,
@@ -254,6 +277,14 @@ fn cors(config: &ServeConfig) -> CorsLayer {
 
 /// The complete REST router.
 pub fn router(state: AppState) -> Router {
+    router_with(state, Router::new())
+}
+
+/// The REST router with `extra` routes served beside the API ones, under the
+/// same admission control and middleware (panic catching, metrics, request
+/// ids, CORS). For tests of that wiring (e.g. a route that panics); the server
+/// itself uses [`router`].
+pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
     let admin = Router::new()
         .route(
             "/v1/robots",
@@ -275,6 +306,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/robots/{name}/fk/stream", get(ws::stream));
     let api = admin
         .merge(fk)
+        .merge(extra)
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route("/healthz", get(handlers::healthz))
         .route("/readyz", get(handlers::readyz))
