@@ -465,35 +465,37 @@ impl Chain {
             }
             p[i] = [self.base.translation[i]; LANES];
         }
+        // Row slices of the eight configurations (one bounds check each, here).
+        let cfg: [&[f64]; LANES] =
+            std::array::from_fn(|k| q.get(k * dof..(k + 1) * dof).unwrap_or(&[]));
         let mut j = 0;
         for l in &self.links {
             let mut ct: V = [l.ct; LANES];
             let mut st: V = [l.st; LANES];
             let mut d: V = [l.d; LANES];
-            match l.kind {
-                JointKind::Fixed => {}
-                JointKind::Revolute => {
-                    let mut needs_std = false;
+            if l.kind != JointKind::Fixed {
+                // Gather joint j of the eight configurations, then work on whole vectors.
+                let mut x: V = [0.0; LANES];
+                for k in 0..LANES {
+                    x[k] = cfg[k].get(j).copied().unwrap_or(0.0);
+                }
+                j += 1;
+                if l.kind == JointKind::Revolute {
                     for k in 0..LANES {
-                        let x = madd::<FMA>(q[k * dof + j], angle_scale, l.theta);
-                        let (s, c) = sincos_poly_impl::<FMA>(x);
-                        ct[k] = c;
-                        st[k] = s;
-                        needs_std |= sincos::needs_std(x);
+                        x[k] = madd::<FMA>(x[k], angle_scale, l.theta);
                     }
-                    if needs_std {
+                    for k in 0..LANES {
+                        (st[k], ct[k]) = sincos_poly_impl::<FMA>(x[k]);
+                    }
+                    if x.iter().any(|&v| sincos::needs_std(v)) {
                         for k in 0..LANES {
-                            let x = madd::<FMA>(q[k * dof + j], angle_scale, l.theta);
-                            (st[k], ct[k]) = x.sin_cos();
+                            (st[k], ct[k]) = x[k].sin_cos();
                         }
                     }
-                    j += 1;
-                }
-                JointKind::Prismatic => {
+                } else {
                     for k in 0..LANES {
-                        d[k] = l.d + q[k * dof + j];
+                        d[k] = l.d + x[k];
                     }
-                    j += 1;
                 }
             }
             match self.convention {
