@@ -7,6 +7,7 @@ pub mod api;
 pub mod cli;
 pub mod config;
 pub mod error;
+pub mod fuzzing;
 pub mod kinematics;
 pub mod load;
 pub mod model;

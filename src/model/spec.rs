@@ -5,6 +5,40 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+/// Implements `Serialize` and `Deserialize` for a struct derived with
+/// `#[serde(remote = "Self")]` so that it is read only from a JSON object:
+/// serde's derive alone also accepts an array of the field values in
+/// declaration order (`"tool": [null, null]`), which the schema does not allow.
+macro_rules! object_only {
+    ($t:ident) => {
+        impl Serialize for $t {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                // The inherent function derived by `remote = "Self"`.
+                $t::serialize(self, s)
+            }
+        }
+
+        impl<'de> Deserialize<'de> for $t {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                struct ObjectVisitor;
+                impl<'de> serde::de::Visitor<'de> for ObjectVisitor {
+                    type Value = $t;
+                    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                        f.write_str("a JSON object")
+                    }
+                    fn visit_map<A: serde::de::MapAccess<'de>>(
+                        self,
+                        map: A,
+                    ) -> Result<$t, A::Error> {
+                        $t::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    }
+                }
+                d.deserialize_map(ObjectVisitor)
+            }
+        }
+    };
+}
+
 /// DH convention of a table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
@@ -81,30 +115,35 @@ impl LengthUnit {
 
 /// One row of the DH table.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, remote = "Self")]
 pub struct LinkSpec {
     /// Optional joint/link name (at most 64 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(max_length = 64)]
     pub name: Option<String>,
     /// Joint kind.
     pub joint: JointType,
-    /// Link length `a` (modified: `a_{i-1}`), model length unit.
+    /// Link length `a` (modified: `a_{i-1}`), model length unit; at most 1e9 in magnitude.
+    #[schema(minimum = -1e9, maximum = 1e9)]
     pub a: f64,
-    /// Link twist `α` (modified: `α_{i-1}`), model angle unit.
+    /// Link twist `α` (modified: `α_{i-1}`), model angle unit; at most 1e9 in magnitude.
+    #[schema(minimum = -1e9, maximum = 1e9)]
     pub alpha: f64,
-    /// Link offset `d`; for a prismatic joint the value at q = 0. Model length unit.
+    /// Link offset `d`; for a prismatic joint the value at q = 0. Model length unit; at most 1e9 in magnitude.
+    #[schema(minimum = -1e9, maximum = 1e9)]
     pub d: f64,
-    /// Joint angle `θ`; for a revolute joint the value at q = 0. Model angle unit.
+    /// Joint angle `θ`; for a revolute joint the value at q = 0. Model angle unit; at most 1e9 in magnitude.
+    #[schema(minimum = -1e9, maximum = 1e9)]
     pub theta: f64,
     /// Joint limits `[lo, hi]` on q (not on θ or d): angle unit for revolute,
-    /// length unit for prismatic joints. Not allowed on fixed rows.
+    /// length unit for prismatic joints (within ±1e9). Not allowed on fixed rows.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub limits: Option<[f64; 2]>,
 }
 
 /// A unit quaternion `w + xi + yj + zk` (normalised on input; must not be zero).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, remote = "Self")]
 pub struct QuaternionSpec {
     /// Scalar part.
     pub w: f64,
@@ -119,9 +158,9 @@ pub struct QuaternionSpec {
 /// A fixed rigid transform: either `translation` with at most one of `rpy` /
 /// `quaternion`, or `matrix` alone.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, remote = "Self")]
 pub struct TransformSpec {
-    /// `[x, y, z]` in the model length unit (default zero).
+    /// `[x, y, z]` in the model length unit (default zero), each at most 1e9 in magnitude.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation: Option<[f64; 3]>,
     /// `[roll, pitch, yaw]` in the model angle unit, `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
@@ -131,14 +170,15 @@ pub struct TransformSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub quaternion: Option<QuaternionSpec>,
     /// Homogeneous 4×4 matrix, row-major; must be rigid (orthonormal rotation,
-    /// det +1 within 1e-6, last row 0 0 0 1). Translation in the model length unit.
+    /// det +1 within 1e-6, last row 0 0 0 1); the nearest exact rotation is used.
+    /// Translation in the model length unit, each at most 1e9 in magnitude.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub matrix: Option<[[f64; 4]; 4]>,
 }
 
 /// A serial robot as registered: a named DH table with units and optional base and tool.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, remote = "Self")]
 #[schema(example = json!({
     "name": "planar2",
     "convention": "standard",
@@ -151,12 +191,19 @@ pub struct TransformSpec {
 }))]
 pub struct RobotSpec {
     /// 1–64 characters of `[a-z0-9_-]`, starting with a letter or digit.
+    #[schema(
+        pattern = "^[a-z0-9][a-z0-9_-]{0,63}$",
+        min_length = 1,
+        max_length = 64
+    )]
     pub name: String,
     /// Free text (at most 4096 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(max_length = 4096)]
     pub description: Option<String>,
     /// Where the table comes from (at most 4096 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(max_length = 4096)]
     pub source: Option<String>,
     /// DH convention of `links`.
     pub convention: ConventionSpec,
@@ -172,6 +219,12 @@ pub struct RobotSpec {
     /// Tool tip in the flange frame (`^n T_tool`); identity if absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool: Option<TransformSpec>,
-    /// The DH table, base to flange.
+    /// The DH table, base to flange (at least one row, at least one of them movable).
+    #[schema(min_items = 1)]
     pub links: Vec<LinkSpec>,
 }
+
+object_only!(LinkSpec);
+object_only!(QuaternionSpec);
+object_only!(TransformSpec);
+object_only!(RobotSpec);

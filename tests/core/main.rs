@@ -1,6 +1,7 @@
 //! Core tests: kinematics, model validation, robot files, CLI.
 mod cli;
 mod closed_forms;
+mod fuzz_corpus;
 mod kinematics;
 mod model;
 mod properties;

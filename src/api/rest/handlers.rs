@@ -46,7 +46,8 @@ pub async fn readyz(State(state): State<AppState>) -> ApiResult<&'static str> {
 }
 
 /// Every robot, sorted by name.
-#[utoipa::path(get, path = "/v1/robots", tag = "robots", responses((status = 200, body = RobotList)))]
+#[utoipa::path(get, path = "/v1/robots", tag = "robots", responses((status = 200, body = RobotList),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn list_robots(State(state): State<AppState>) -> Json<RobotList> {
     let robots = state
         .service
@@ -67,7 +68,9 @@ pub async fn list_robots(State(state): State<AppState>) -> Json<RobotList> {
 #[utoipa::path(get, path = "/v1/robots/{name}", tag = "robots",
     params(("name" = String, Path, description = "Robot name")),
     responses((status = 200, body = RobotSpec),
-        (status = 404, body = Problem, content_type = "application/problem+json")))]
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn get_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
@@ -99,6 +102,7 @@ fn created(name: &str, created: bool, spec: &RobotSpec) -> Response {
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn create_robot(
     State(state): State<AppState>,
@@ -118,7 +122,10 @@ pub async fn create_robot(
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn put_robot(
     State(state): State<AppState>,
@@ -145,9 +152,11 @@ pub async fn put_robot(
     params(("name" = String, Path, description = "Robot name")),
     security((), ("bearer" = [])),
     responses((status = 204, description = "Deleted"),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn delete_robot(
     State(state): State<AppState>,
@@ -165,7 +174,8 @@ pub async fn delete_robot(
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
-        (status = 422, body = Problem, content_type = "application/problem+json")))]
+        (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn fk(
     State(state): State<AppState>,
     RobotName(name): RobotName,
@@ -196,7 +206,8 @@ pub async fn fk(
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
-        (status = 422, body = Problem, content_type = "application/problem+json")))]
+        (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn fk_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,

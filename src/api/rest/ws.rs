@@ -23,7 +23,10 @@ const GOING_AWAY: u16 = 1001;
 #[utoipa::path(get, path = "/v1/robots/{name}/fk/stream", tag = "fk",
     params(("name" = String, Path, description = "Robot name")),
     responses((status = 101, description = "WebSocket upgrade; messages are WsRequest, replies WsReply"),
-        (status = 404, body = Problem, content_type = "application/problem+json")))]
+        (status = 400, description = "Bad path or not a WebSocket handshake", body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 426, description = "The connection cannot be upgraded", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,

@@ -1,0 +1,526 @@
+//! Property checks over arbitrary input bytes, shared by the `cargo fuzz`
+//! targets in `fuzz/` and by the corpus replay test (`tests/core/fuzz_corpus.rs`),
+//! so a corpus file means the same thing to both.
+//!
+//! Each check takes any bytes, must never panic on its own account, and panics
+//! (with a message saying which property broke) when kinserve violates one:
+//!
+//! * [`check_model`]: robot model parsing and validation never panic; a model
+//!   that validates gives finite, rigid poses for every in-limit configuration
+//!   (single pose, every frame, batch), the fast and reference paths agree, and
+//!   the model round-trips through its JSON form (as the registry stores it).
+//! * [`check_fk_request`]: the REST FK body, the batch body and the WebSocket
+//!   message, parsed as the server parses them and evaluated against a few
+//!   built-in robots, either fail with a client error (4xx) or give finite,
+//!   rigid poses that serialise to JSON numbers (never `null`).
+//!
+//! Not part of the service API; public only so the fuzz crate can call it.
+
+use std::sync::OnceLock;
+
+use crate::api::rest::{FkBatchRequest, FkRequest, Problem, WsRequest};
+use crate::error::Error;
+use crate::kinematics::{JointKind, Transform};
+use crate::model::{
+    AngleUnit, FkOptions, MAX_MAGNITUDE, ModelLimits, Pose, RIGID_TOLERANCE, Robot, parse_json,
+};
+use crate::registry::{MemoryStore, Registry};
+use crate::service::{Configurations, Service, ServiceLimits};
+
+/// Relative tolerance between the fast (polynomial, SIMD) FK and the `std`
+/// per-frame FK: both are accurate to ~1e-15 per row, so this only trips on a
+/// real disagreement.
+const AGREE: f64 = 1e-9;
+
+/// Parses `bytes` as a robot model with default limits; if it validates,
+/// evaluates it at a set of in-limit configurations derived from the bytes and
+/// checks every pose. Panics if a property is violated.
+pub fn check_model(bytes: &[u8]) {
+    let limits = ModelLimits::default();
+    let robot = match Robot::from_json(bytes, &limits) {
+        Ok(r) => r,
+        Err(e) => {
+            assert_client_error(&e, "model");
+            return;
+        }
+    };
+    let dof = robot.dof();
+    assert!(
+        (1..=limits.max_joints).contains(&dof),
+        "validated robot has {dof} movable joints"
+    );
+    assert_eq!(robot.chain().dof(), dof, "chain and model disagree on dof");
+    assert!(robot.chain().rows() <= limits.max_links);
+
+    // The registry stores a model as its JSON and loads it again at start-up:
+    // what validated once must validate again, unchanged.
+    let json = serde_json::to_vec(robot.spec()).expect("a validated spec serialises");
+    match Robot::from_json(&json, &limits) {
+        Ok(again) => check_same_spec(&again, &robot),
+        Err(e) => panic!("validated spec fails validation after a JSON round trip: {e}"),
+    }
+
+    let scale = reach(&robot);
+    let mut rng = Rng::new(bytes);
+    let configs = in_limit_configurations(&robot, &mut rng);
+    let opts = FkOptions::default();
+    for q in &configs {
+        let t = match robot.fk_checked(q, &opts) {
+            Ok(t) => t,
+            Err(e) => panic!("in-limit configuration {q:?} rejected: {e}"),
+        };
+        check_pose(&t, "fk_checked", q);
+        let (tool, frames) = robot.chain().forward_frames(q, 1.0);
+        check_pose(&tool, "forward_frames tool", q);
+        assert_eq!(frames.len(), robot.chain().rows() + 1, "frame count");
+        for f in &frames {
+            check_pose(f, "forward_frames frame", q);
+        }
+        check_agree(&t, &tool, scale, "fk_checked vs forward_frames", q);
+    }
+
+    // The batch path (8-wide blocks plus a remainder) must match one by one.
+    let flat: Vec<f64> = configs.iter().flatten().copied().collect();
+    let mut out = vec![Transform::IDENTITY; configs.len()];
+    robot.chain().forward_batch(&flat, 1.0, &mut out);
+    for (q, t) in configs.iter().zip(&out) {
+        check_pose(t, "forward_batch", q);
+        check_agree(
+            t,
+            &robot.chain().forward(q, 1.0),
+            scale,
+            "batch vs single",
+            q,
+        );
+    }
+
+    // Limits off: any finite revolute value, prismatic values within the bound.
+    let free = FkOptions {
+        angle_unit: AngleUnit::Rad,
+        check_limits: false,
+    };
+    for _ in 0..3 {
+        let q: Vec<f64> = robot
+            .joints()
+            .iter()
+            .map(|j| match j.kind {
+                JointKind::Prismatic => rng.bounded(MAX_MAGNITUDE),
+                _ => rng.any_finite(),
+            })
+            .collect();
+        match robot.fk_checked(&q, &free) {
+            Ok(t) => check_pose(&t, "fk_checked without limits", &q),
+            Err(e) => panic!("finite configuration {q:?} rejected without limit checks: {e}"),
+        }
+        let deg = FkOptions {
+            angle_unit: AngleUnit::Deg,
+            check_limits: false,
+        };
+        match robot.fk_frames_checked(&q, &deg) {
+            Ok((t, frames)) => {
+                check_pose(&t, "fk_frames_checked deg", &q);
+                frames
+                    .iter()
+                    .for_each(|f| check_pose(f, "fk_frames_checked deg frame", &q));
+            }
+            Err(e) => panic!("finite configuration {q:?} rejected in deg: {e}"),
+        }
+    }
+
+    // Bad vectors are client errors, never panics.
+    let mut bad = configs[0].clone();
+    bad.push(0.0);
+    expect_invalid(robot.fk_checked(&bad, &opts), "one value too many");
+    let mut bad = configs[0].clone();
+    bad[rng.below(dof)] = f64::NAN;
+    expect_invalid(robot.fk_checked(&bad, &free), "NaN joint value");
+    if let Some(i) = robot
+        .joints()
+        .iter()
+        .position(|j| j.kind == JointKind::Prismatic)
+    {
+        let mut bad = configs[0].clone();
+        bad[i] = MAX_MAGNITUDE * 2.0;
+        expect_invalid(
+            robot.fk_checked(&bad, &free),
+            "prismatic value over the bound",
+        );
+    }
+}
+
+/// Parses `bytes` as a REST FK body, a REST batch body and a WebSocket FK
+/// message, and evaluates whatever parses against a few built-in robots the
+/// way the handlers do. Panics if a property is violated.
+pub fn check_fk_request(bytes: &[u8]) {
+    let service = service();
+    match parse_json::<FkRequest>(bytes) {
+        Ok(req) => {
+            for robot in robots() {
+                evaluate_one(service, robot, &req.joints, &req.options(), req.frames);
+            }
+        }
+        Err(e) => assert_client_error(&e, "FkRequest"),
+    }
+    match parse_json::<FkBatchRequest>(bytes) {
+        Ok(req) => {
+            for robot in robots() {
+                evaluate_batch(service, robot, &req.configurations, &req.options());
+            }
+        }
+        Err(e) => assert_client_error(&e, "FkBatchRequest"),
+    }
+    match parse_json::<WsRequest>(bytes) {
+        Ok(req) => {
+            let opts = FkOptions {
+                angle_unit: req.angle_unit,
+                check_limits: req.check_limits,
+            };
+            for robot in robots() {
+                evaluate_one(service, robot, &req.joints, &opts, req.frames);
+            }
+        }
+        Err(e) => assert_client_error(&e, "WsRequest"),
+    }
+}
+
+fn evaluate_one(service: &Service, robot: &Robot, q: &[f64], opts: &FkOptions, frames: bool) {
+    let single = match service.fk(robot, q, opts) {
+        Ok(t) => t,
+        Err(e) => {
+            assert_client_error(&e, "fk");
+            // The frames path must refuse the same input.
+            assert!(
+                service.fk_frames(robot, q, opts).is_err(),
+                "fk and fk_frames disagree"
+            );
+            return;
+        }
+    };
+    check_pose(&single, "fk", q);
+    check_serialises(&single, q);
+    if frames || opts.angle_unit == AngleUnit::Rad {
+        let (tool, all) = match service.fk_frames(robot, q, opts) {
+            Ok(r) => r,
+            Err(e) => panic!("fk accepted {q:?} but fk_frames refused it: {e}"),
+        };
+        check_pose(&tool, "fk_frames", q);
+        for f in &all {
+            check_pose(f, "fk_frames frame", q);
+            check_serialises(f, q);
+        }
+        if opts.angle_unit == AngleUnit::Rad {
+            check_agree(&single, &tool, reach_with(robot, q), "fk vs fk_frames", q);
+        }
+    }
+}
+
+fn evaluate_batch(service: &Service, robot: &Robot, configs: &Configurations, opts: &FkOptions) {
+    let poses = match service.fk_batch(robot, configs, opts) {
+        Ok(p) => p,
+        Err(e) => {
+            assert_client_error(&e, "fk_batch");
+            return;
+        }
+    };
+    assert_eq!(poses.len(), configs.len(), "one pose per configuration");
+    let dof = robot.dof();
+    for (q, t) in configs.values.chunks_exact(dof.max(1)).zip(&poses) {
+        check_pose(t, "fk_batch", q);
+        check_serialises(t, q);
+        if opts.angle_unit == AngleUnit::Rad {
+            let one = robot
+                .fk_checked(q, opts)
+                .unwrap_or_else(|e| panic!("batch accepted {q:?} but fk refused it: {e}"));
+            check_agree(t, &one, reach_with(robot, q), "batch vs single", q);
+        }
+    }
+}
+
+/// The service the handlers call (in-memory store, default limits).
+fn service() -> &'static Service {
+    static SERVICE: OnceLock<Service> = OnceLock::new();
+    SERVICE.get_or_init(|| {
+        Service::new(
+            Registry::new(Box::new(MemoryStore)),
+            ServiceLimits::default(),
+            None,
+        )
+    })
+}
+
+/// Built-in robots covering revolute limits (puma560), prismatic joints with
+/// limits (stanford, cylindrical_3dof), unlimited revolute joints (scara_4dof),
+/// and a model with unlimited, parallel prismatic joints.
+fn robots() -> &'static [Robot] {
+    static ROBOTS: OnceLock<Vec<Robot>> = OnceLock::new();
+    ROBOTS.get_or_init(|| {
+        let files: [&[u8]; 4] = [
+            include_bytes!("../robots/puma560.json"),
+            include_bytes!("../robots/stanford.json"),
+            include_bytes!("../robots/scara_4dof.json"),
+            include_bytes!("../robots/cylindrical_3dof.json"),
+        ];
+        let slides = br#"{"name": "slides", "convention": "standard", "links": [
+            {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0, "theta": 0},
+            {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0, "theta": 0},
+            {"joint": "revolute", "a": 1, "alpha": 0, "d": 0, "theta": 0}]}"#;
+        files
+            .iter()
+            .copied()
+            .chain([&slides[..]])
+            .map(|b| Robot::from_json(b, &ModelLimits::default()).expect("built-in robot"))
+            .collect()
+    })
+}
+
+/// The spec after a JSON round trip equals the original: exactly if serde_json
+/// parses floats exactly (its `float_roundtrip` feature), else within a few ulp
+/// (its default parser can be off by one or two ulp on 17-digit input, so an
+/// exact comparison would only rediscover that).
+fn check_same_spec(again: &Robot, robot: &Robot) {
+    if again.spec() == robot.spec() {
+        return;
+    }
+    // A 17-digit literal the default serde_json parser rounds wrongly.
+    const PROBE: &str = "1.5707269963748967";
+    let exact = serde_json::from_str::<f64>(PROBE).ok() == PROBE.parse::<f64>().ok();
+    assert!(
+        !exact,
+        "spec changed in a JSON round trip:\n{:?}\n{:?}",
+        robot.spec(),
+        again.spec()
+    );
+    let a = serde_json::to_value(robot.spec()).expect("a spec serialises");
+    let b = serde_json::to_value(again.spec()).expect("a spec serialises");
+    assert!(
+        same_within_ulps(&a, &b),
+        "spec changed in a JSON round trip by more than rounding:\n{a}\n{b}"
+    );
+}
+
+fn same_within_ulps(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
+            (Some(x), Some(y)) => {
+                let scale = x.abs().max(y.abs()).max(f64::MIN_POSITIVE);
+                (x - y).abs() <= 4.0 * f64::EPSILON * scale
+            }
+            _ => x == y,
+        },
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same_within_ulps(x, y))
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len()
+                && x.iter()
+                    .all(|(k, v)| y.get(k).is_some_and(|w| same_within_ulps(v, w)))
+        }
+        _ => a == b,
+    }
+}
+
+/// A model or request error must be one the client caused (HTTP 4xx).
+fn assert_client_error(e: &Error, what: &str) {
+    let status = Problem::from_error(e).status;
+    assert!(
+        (400..500).contains(&status),
+        "{what}: error maps to HTTP {status}, not a client error: {e}"
+    );
+}
+
+fn expect_invalid(r: crate::Result<Transform>, what: &str) {
+    match r {
+        Ok(t) => panic!("{what}: accepted, giving {t:?}"),
+        Err(e) => assert!(
+            matches!(e, Error::Invalid { .. }),
+            "{what}: expected an invalid-input error, got {e}"
+        ),
+    }
+}
+
+/// Finite and rigid, and its pose form (quaternion, rpy) is finite and unit.
+fn check_pose(t: &Transform, what: &str, q: &[f64]) {
+    let finite = t.rotation.iter().flatten().all(|x| x.is_finite())
+        && t.translation.iter().all(|x| x.is_finite());
+    assert!(finite, "{what}: non-finite pose {t:?} for q = {q:?}");
+    let err = t.rigidity_error();
+    assert!(
+        err < RIGID_TOLERANCE,
+        "{what}: pose is not rigid (off by {err:e}) for q = {q:?}: {t:?}"
+    );
+    let p = Pose::from(t);
+    let n = p.quaternion.w.powi(2)
+        + p.quaternion.x.powi(2)
+        + p.quaternion.y.powi(2)
+        + p.quaternion.z.powi(2);
+    assert!(
+        (n - 1.0).abs() < 1e-9 && p.quaternion.w >= 0.0,
+        "{what}: quaternion {:?} is not a unit quaternion with w >= 0 for q = {q:?}",
+        p.quaternion
+    );
+    assert!(
+        p.rpy
+            .iter()
+            .all(|a| a.abs() <= std::f64::consts::PI + 1e-12),
+        "{what}: rpy {:?} out of range for q = {q:?}",
+        p.rpy
+    );
+}
+
+/// serde_json writes a non-finite number as `null`, which the schema forbids.
+fn check_serialises(t: &Transform, q: &[f64]) {
+    let json = serde_json::to_string(&Pose::from(t)).expect("a pose serialises");
+    assert!(
+        !json.contains("null"),
+        "pose serialises with null for q = {q:?}: {json}"
+    );
+}
+
+/// `a` and `b` agree: rotations to `AGREE`, translations to `AGREE · scale`.
+fn check_agree(a: &Transform, b: &Transform, scale: f64, what: &str, q: &[f64]) {
+    for i in 0..3 {
+        for j in 0..3 {
+            let d = (a.rotation[i][j] - b.rotation[i][j]).abs();
+            assert!(
+                d <= AGREE,
+                "{what}: rotation differs by {d:e} for q = {q:?}"
+            );
+        }
+        let d = (a.translation[i] - b.translation[i]).abs();
+        assert!(
+            d <= AGREE * scale,
+            "{what}: translation differs by {d:e} (scale {scale:e}) for q = {q:?}"
+        );
+    }
+}
+
+/// An upper bound on every translation the robot can produce with prismatic
+/// values within the model bound (the scale for translation tolerances).
+fn reach(robot: &Robot) -> f64 {
+    let n = robot
+        .joints()
+        .iter()
+        .filter(|j| j.kind == JointKind::Prismatic)
+        .count();
+    fixed_reach(robot) + n as f64 * MAX_MAGNITUDE
+}
+
+/// Like [`reach`], with the actual prismatic values of `q`.
+fn reach_with(robot: &Robot, q: &[f64]) -> f64 {
+    fixed_reach(robot) + q.iter().map(|x| x.abs().min(MAX_MAGNITUDE)).sum::<f64>()
+}
+
+/// 1 + every constant length of the model (`a`, `d`, base and tool translations).
+fn fixed_reach(robot: &Robot) -> f64 {
+    let spec = robot.spec();
+    let t = |s: &Option<crate::model::TransformSpec>| {
+        s.as_ref().map_or(0.0, |s| {
+            let m: f64 = s
+                .matrix
+                .map_or(0.0, |m| m.iter().take(3).map(|r| r[3].abs()).sum());
+            let tr: f64 = s
+                .translation
+                .map_or(0.0, |t| t.iter().map(|x| x.abs()).sum());
+            m + tr
+        })
+    };
+    let links: f64 = spec.links.iter().map(|l| l.a.abs() + l.d.abs()).sum();
+    1.0 + t(&spec.base) + t(&spec.tool) + links
+}
+
+/// Joint vectors inside every limit, in internal units (rad, model length
+/// unit): zeros clamped into the limits, all lower limits, all upper limits,
+/// midpoints, then values drawn from the input bytes. At least 10, so the
+/// batch path runs a full 8-wide block and a remainder.
+fn in_limit_configurations(robot: &Robot, rng: &mut Rng) -> Vec<Vec<f64>> {
+    let joints = robot.joints();
+    let pick = |f: &mut dyn FnMut(Option<(f64, f64)>, JointKind) -> f64| -> Vec<f64> {
+        joints.iter().map(|j| f(j.limits, j.kind)).collect()
+    };
+    let mut out = vec![
+        pick(&mut |l, _| l.map_or(0.0, |(lo, hi)| 0.0f64.clamp(lo, hi))),
+        pick(&mut |l, _| l.map_or(0.0, |(lo, _)| lo)),
+        pick(&mut |l, _| l.map_or(0.0, |(_, hi)| hi)),
+        pick(&mut |l, _| l.map_or(0.0, |(lo, hi)| (lo / 2.0 + hi / 2.0).clamp(lo, hi))),
+    ];
+    for _ in 0..7 {
+        out.push(pick(&mut |l, kind| match (l, kind) {
+            (Some((lo, hi)), _) => {
+                let f = rng.unit();
+                (lo * (1.0 - f) + hi * f).clamp(lo, hi)
+            }
+            (None, JointKind::Prismatic) => rng.bounded(MAX_MAGNITUDE),
+            (None, _) => rng.any_finite(),
+        }));
+    }
+    out
+}
+
+/// A small deterministic generator seeded from the input (splitmix64).
+struct Rng(u64);
+
+impl Rng {
+    fn new(bytes: &[u8]) -> Rng {
+        // FNV-1a of the input.
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in bytes {
+            h = (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3);
+        }
+        Rng(h)
+    }
+
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+
+    /// Uniform in `[0, 1]`.
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A value in `[-bound, bound]`, often one of the ends or zero.
+    fn bounded(&mut self, bound: f64) -> f64 {
+        match self.below(6) {
+            0 => bound,
+            1 => -bound,
+            2 => 0.0,
+            3 => self.unit() * 2.0 - 1.0,
+            _ => (self.unit() * 2.0 - 1.0) * bound,
+        }
+    }
+
+    /// Any finite value, favouring the awkward ones.
+    fn any_finite(&mut self) -> f64 {
+        const SPECIAL: [f64; 12] = [
+            0.0,
+            -0.0,
+            std::f64::consts::PI,
+            -std::f64::consts::FRAC_PI_2,
+            1.0e5,
+            1.0e5 + 1.0,
+            1.0e15,
+            1.0e300,
+            f64::MAX,
+            -f64::MAX,
+            f64::MIN_POSITIVE,
+            5e-324,
+        ];
+        match self.below(3) {
+            0 => SPECIAL[self.below(SPECIAL.len())],
+            1 => (self.unit() * 2.0 - 1.0) * 10.0,
+            _ => {
+                let x = f64::from_bits(self.next());
+                if x.is_finite() { x } else { 1.0 }
+            }
+        }
+    }
+}
