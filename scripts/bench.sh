@@ -48,6 +48,8 @@ for c in $CONCURRENCY; do
   done
 done
 
+load_rss=$(awk '/VmHWM/ {print $2}' /proc/$pid/status)
+
 echo
 echo "# batches of 10,000 configurations, end to end (encoding included), 1 connection"
 for t in rest-batch grpc-batch; do
@@ -81,4 +83,4 @@ fi
 
 peak_rss=$(awk '/VmHWM/ {print $2}' /proc/$pid/status)
 echo
-echo "# server RSS: idle $((idle_rss / 1024)) MB, peak $((peak_rss / 1024)) MB"
+echo "# server RSS: idle $((idle_rss / 1024)) MB; peak during the table above (up to 64 connections) $((load_rss / 1024)) MB; peak over the whole run incl. 10,000-pose batches and wrk $((peak_rss / 1024)) MB"
