@@ -132,6 +132,16 @@ impl Service {
         }
     }
 
+    /// Checks an `Authorization` header (HTTP) or metadata value (gRPC) of the form
+    /// `Bearer <token>` (scheme case-insensitive). Passes when no token is configured.
+    pub fn authorize_header(&self, authorization: Option<&str>) -> Result<()> {
+        let token = authorization.and_then(|v| {
+            let (scheme, token) = v.split_once(' ')?;
+            scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+        });
+        self.authorize(token)
+    }
+
     /// Every robot, sorted by name.
     pub fn list(&self) -> Vec<RobotSummary> {
         self.registry

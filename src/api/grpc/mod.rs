@@ -60,10 +60,9 @@ pub struct GrpcService {
     shutdown: watch::Receiver<bool>,
 }
 
-fn bearer<T>(req: &Request<T>) -> Option<&str> {
-    let v = req.metadata().get("authorization")?.to_str().ok()?;
-    let (scheme, token) = v.split_once(' ')?;
-    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+/// The `authorization` metadata value of a request, if readable.
+fn authorization<T>(req: &Request<T>) -> Option<&str> {
+    req.metadata().get("authorization")?.to_str().ok()
 }
 
 impl GrpcService {
@@ -140,7 +139,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::RegisterRobotRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
-        self.service.authorize(bearer(&req))?;
+        self.service.authorize_header(authorization(&req))?;
         let _permit = self.admit()?;
         let req = req.into_inner();
         let robot = req
@@ -165,7 +164,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::DeleteRobotRequest>,
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
-        self.service.authorize(bearer(&req))?;
+        self.service.authorize_header(authorization(&req))?;
         let _permit = self.admit()?;
         self.service.delete(&req.get_ref().name).await?;
         Ok(Response::new(pb::DeleteRobotResponse {}))

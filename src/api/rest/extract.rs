@@ -127,10 +127,3 @@ impl FromRequestParts<AppState> for RobotName {
         Ok(RobotName(name))
     }
 }
-
-/// The bearer token of a request, if any.
-pub fn bearer(headers: &axum::http::HeaderMap) -> Option<&str> {
-    let v = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
-    let (scheme, token) = v.split_once(' ')?;
-    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
-}

@@ -131,7 +131,13 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
         *req.method(),
         Method::POST | Method::PUT | Method::DELETE | Method::PATCH
     );
-    if mutating && let Err(e) = state.service.authorize(extract::bearer(req.headers())) {
+    if mutating
+        && let Err(e) = state.service.authorize_header(
+            req.headers()
+                .get(header::AUTHORIZATION)
+                .and_then(|v| v.to_str().ok()),
+        )
+    {
         return refuse_unread(has_body(req.headers()), ApiError(e).into_response());
     }
     next.run(req).await
