@@ -224,7 +224,8 @@ impl Default for ServeConfig {
             #[command(flatten)]
             c: ServeConfig,
         }
-        // Defaults exactly as the flags declare them (env is ignored only if unset).
+        // As if `kinserve serve` ran with no flags: the flag defaults, overridden by any
+        // KINSERVE_* environment variables that are set.
         Wrap::parse_from(["kinserve"]).c
     }
 }
