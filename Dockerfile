@@ -57,6 +57,8 @@ RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/regist
 #    stubs again; real files (src/bin/*.rs) are left alone.
 COPY build.rs ./
 COPY proto ./proto
+# robots/ too: the library embeds a few built-in models (src/fuzzing.rs).
+COPY robots ./robots
 COPY src ./src
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
     set -eu; \
