@@ -222,6 +222,22 @@ impl Service {
         Ok(r)
     }
 
+    /// Checked FK of one configuration: the tool pose, and every frame when
+    /// `frames` is set — the one entry point the front doors call for single FK.
+    pub fn fk_with_frames(
+        &self,
+        robot: &Robot,
+        q: &[f64],
+        opts: &FkOptions,
+        frames: bool,
+    ) -> Result<(Transform, Option<Vec<Transform>>)> {
+        if frames {
+            self.fk_frames(robot, q, opts).map(|(t, f)| (t, Some(f)))
+        } else {
+            self.fk(robot, q, opts).map(|t| (t, None))
+        }
+    }
+
     /// Checks a batch size against the limit before anything is decoded further.
     pub fn check_batch_size(&self, count: usize) -> Result<()> {
         if count > self.limits.max_batch {

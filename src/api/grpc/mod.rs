@@ -83,17 +83,11 @@ impl GrpcService {
         let entry = self.service.robot(robot)?;
         let (opts, frames) = convert::options_from_pb(options)?;
         let unit = convert::length_unit_to_pb(entry.robot.length_unit());
-        if frames {
-            let (t, fr) = self.service.fk_frames(&entry.robot, joints, &opts)?;
-            Ok((
-                convert::pose_to_pb(&t),
-                fr.iter().map(convert::pose_to_pb).collect(),
-                unit,
-            ))
-        } else {
-            let t = self.service.fk(&entry.robot, joints, &opts)?;
-            Ok((convert::pose_to_pb(&t), Vec::new(), unit))
-        }
+        let (t, fr) = self
+            .service
+            .fk_with_frames(&entry.robot, joints, &opts, frames)?;
+        let frames = fr.iter().flatten().map(convert::pose_to_pb).collect();
+        Ok((convert::pose_to_pb(&t), frames, unit))
     }
 }
 

@@ -184,12 +184,10 @@ pub async fn fk(
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
     let opts = req.options();
-    let (pose, frames) = if req.frames {
-        let (t, frames) = state.service.fk_frames(robot, &req.joints, &opts)?;
-        (t, Some(frames.iter().map(Pose::from).collect()))
-    } else {
-        (state.service.fk(robot, &req.joints, &opts)?, None)
-    };
+    let (pose, frames) = state
+        .service
+        .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
+    let frames = frames.map(|f| f.iter().map(Pose::from).collect());
     Ok(Json(FkOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),

@@ -151,18 +151,10 @@ fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         angle_unit: req.angle_unit,
         check_limits: req.check_limits,
     };
-    let result = if req.frames {
-        state
-            .service
-            .fk_frames(&entry.robot, &req.joints, &opts)
-            .map(|(t, f)| (t, Some(f)))
-    } else {
-        state
-            .service
-            .fk(&entry.robot, &req.joints, &opts)
-            .map(|t| (t, None))
-    };
-    match result {
+    match state
+        .service
+        .fk_with_frames(&entry.robot, &req.joints, &opts, req.frames)
+    {
         Ok((t, frames)) => {
             let reply = WsReply {
                 id: &req.id,
