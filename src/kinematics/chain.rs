@@ -110,9 +110,9 @@ pub struct Chain {
     tool: Option<Transform>,
 }
 
-/// Largest chain the stack buffers of the single-pose path hold; longer chains
-/// (allowed only by raising the configured maximum) take the slower std path.
-pub const STACK_JOINTS: usize = 64;
+/// Default maximum of movable joints per model (see `model::ModelLimits`);
+/// the evaluators themselves accept chains of any length.
+pub const DEFAULT_MAX_JOINTS: usize = 64;
 
 /// Poses evaluated together in the batch path (structure of arrays).
 const LANES: usize = 8;
@@ -176,43 +176,6 @@ impl Chain {
     /// Kind of each movable joint, in order.
     pub fn joint_kinds(&self) -> impl Iterator<Item = JointKind> + '_ {
         self.movable.iter().map(|&i| self.links[i].kind)
-    }
-
-    /// Multiplies `t` in place by the link matrix of `l` with the given `cos θ, sin θ, d`.
-    #[inline(always)]
-    fn apply(convention: Convention, t: &mut Transform, l: &Link, ct: f64, st: f64, d: f64) {
-        let r = &mut t.rotation;
-        let p = &mut t.translation;
-        match convention {
-            Convention::Standard => {
-                // A = [[ct, -st*ca,  st*sa, a*ct],
-                //      [st,  ct*ca, -ct*sa, a*st],
-                //      [ 0,     sa,     ca,    d]]
-                for k in 0..3 {
-                    let (r0, r1, r2) = (r[k][0], r[k][1], r[k][2]);
-                    let x = r0 * ct + r1 * st;
-                    let y = r1 * ct - r0 * st;
-                    r[k][0] = x;
-                    r[k][1] = y * l.ca + r2 * l.sa;
-                    r[k][2] = r2 * l.ca - y * l.sa;
-                    p[k] += x * l.a + r2 * d;
-                }
-            }
-            Convention::Modified => {
-                // A = [[   ct,    -st,   0,     a],
-                //      [st*ca,  ct*ca, -sa, -sa*d],
-                //      [st*sa,  ct*sa,  ca,  ca*d]]
-                for k in 0..3 {
-                    let (r0, r1, r2) = (r[k][0], r[k][1], r[k][2]);
-                    let u = r1 * l.ca + r2 * l.sa;
-                    let w = r2 * l.ca - r1 * l.sa;
-                    r[k][0] = r0 * ct + u * st;
-                    r[k][1] = u * ct - r0 * st;
-                    r[k][2] = w;
-                    p[k] += r0 * l.a + w * d;
-                }
-            }
-        }
     }
 
     /// `(cos θ, sin θ, d)` of row `l`. For a revolute row `sv, cv` are the sine and
@@ -334,8 +297,8 @@ impl Chain {
         angle_scale: f64,
         frame: &mut dyn FnMut(&Transform),
     ) -> Transform {
-        let mut t = self.base;
-        frame(&t);
+        let mut c = to_cols(&self.base);
+        frame(&self.base);
         let mut qi = q.iter();
         for l in &self.links {
             let v = match l.kind {
@@ -345,9 +308,10 @@ impl Chain {
             };
             let (sv, cv) = v.sin_cos();
             let (ct, st, d) = Self::row_values(l, v, sv, cv);
-            Self::apply(self.convention, &mut t, l, ct, st, d);
-            frame(&t);
+            apply_cols::<false>(self.convention, &mut c, l, ct, st, d);
+            frame(&from_cols(&c));
         }
+        let t = from_cols(&c);
         match &self.tool {
             Some(tool) => t.compose(tool),
             None => t,
@@ -417,12 +381,6 @@ impl Chain {
     ) {
         let dof = self.movable.len();
         if dof == 0 {
-            return;
-        }
-        if dof > STACK_JOINTS {
-            for (cfg, o) in q.chunks_exact(dof).zip(out.iter_mut()) {
-                *o = self.forward_impl::<FMA>(cfg, angle_scale);
-            }
             return;
         }
         let count = (q.len() / dof).min(out.len());
@@ -569,7 +527,14 @@ fn from_cols(c: &[[f64; 4]; 4]) -> Transform {
 }
 
 /// Multiplies the column-major transform `c` in place by the link matrix of `l`
-/// with the given `cos θ, sin θ, d` (see [`Chain::apply`] for the matrices).
+/// with the given `cos θ, sin θ, d`. The one DH step of the single-pose and
+/// frames paths (the batch path does the same in structure-of-arrays form):
+///
+/// ```text
+/// standard: A = [[ct, -st*ca,  st*sa, a*ct],     modified: A = [[   ct,    -st,   0,     a],
+///                [st,  ct*ca, -ct*sa, a*st],                    [st*ca,  ct*ca, -sa, -sa*d],
+///                [ 0,     sa,     ca,    d]]                    [st*sa,  ct*sa,  ca,  ca*d]]
+/// ```
 #[inline(always)]
 fn apply_cols<const FMA: bool>(
     convention: Convention,

@@ -5,5 +5,5 @@ mod chain;
 pub mod sincos;
 mod transform;
 
-pub use chain::{Chain, Convention, DhRow, JointKind, STACK_JOINTS, link_transform};
+pub use chain::{Chain, Convention, DEFAULT_MAX_JOINTS, DhRow, JointKind, link_transform};
 pub use transform::Transform;

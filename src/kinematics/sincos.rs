@@ -46,13 +46,7 @@ pub fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 }
 
 /// Sine and cosine of one angle (rad) by the polynomial; valid for `|x| ≤ POLY_LIMIT`.
-/// Branch-free so that loops over it vectorise.
-#[inline(always)]
-pub fn sincos_poly(x: f64) -> (f64, f64) {
-    sincos_poly_impl::<false>(x)
-}
-
-/// [`sincos_poly`] with fused multiply-adds when `FMA` (see [`madd`]).
+/// Branch-free so that loops over it vectorise; fused multiply-adds when `FMA` (see [`madd`]).
 #[inline(always)]
 pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
     let t = madd::<FMA>(x, FRAC_2_PI, ROUND_MAGIC);

@@ -10,7 +10,7 @@ use std::path::Path;
 use serde::de::DeserializeOwned;
 
 use crate::error::{Error, FieldViolation, Result};
-use crate::kinematics::{Chain, Convention, DhRow, JointKind, STACK_JOINTS, Transform};
+use crate::kinematics::{Chain, Convention, DEFAULT_MAX_JOINTS, DhRow, JointKind, Transform};
 
 pub use pose::{FkOutput, Pose, Quaternion};
 pub use spec::{
@@ -43,7 +43,7 @@ pub struct ModelLimits {
 impl Default for ModelLimits {
     fn default() -> Self {
         Self {
-            max_joints: STACK_JOINTS,
+            max_joints: DEFAULT_MAX_JOINTS,
             max_links: 256,
         }
     }
