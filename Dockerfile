@@ -21,14 +21,18 @@ ENV CARGO_INCREMENTAL=0 \
     CARGO_PROFILE_RELEASE_STRIP=symbols
 WORKDIR /build
 
-# 1) Dependency layer: only the manifests, with stub sources in place of the
-#    real ones; rebuilt only when Cargo.toml or Cargo.lock change. Every
+# 1) Dependency layer: only the manifests (the root package and every member
+#    crate under crates/), with stub sources in place of the real ones; rebuilt only when Cargo.toml or Cargo.lock change. Every
 #    [[bin]]/[[bench]]/[[test]]/[[example]] the manifest names (at its
 #    explicit or default path) is listed in .stub-targets and gets a stub,
 #    so cargo accepts the manifest as it is without benches/ or tests/ in
 #    the build context. The crate downloads live in a cache mount, shared by
 #    later builds, not in the layer.
 COPY Cargo.toml Cargo.lock ./
+COPY crates/kinserve-kinematics/Cargo.toml crates/kinserve-kinematics/
+COPY crates/kinserve-model/Cargo.toml crates/kinserve-model/
+COPY crates/kinserve-load/Cargo.toml crates/kinserve-load/
+COPY crates/kinserve-testkit/Cargo.toml crates/kinserve-testkit/
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
     set -eu; \
     awk ' \
@@ -40,32 +44,36 @@ RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/regist
         val = $0; sub(/^[^"]*"/, "", val); sub(/".*/, "", val); if (key == "name") name = val; else path = val } \
       END { flush() }' Cargo.toml > .stub-targets; \
     mkdir -p src; \
+    for d in crates/*/; do mkdir -p "${d}src"; : > "${d}src/lib.rs"; done; \
+    echo 'fn main() {}' > crates/kinserve-load/src/main.rs; \
     echo 'fn main() {}' > src/main.rs; \
     : > src/lib.rs; \
     echo 'fn main() {}' > build.rs; \
     while read -r f; do \
       if [ ! -e "$f" ]; then mkdir -p "$(dirname "$f")"; echo 'fn main() {}' > "$f"; fi; \
     done < .stub-targets; \
-    cargo build --release --locked --bin kinserve; \
-    rm -rf src benches tests examples build.rs \
-      target/release/.fingerprint/kinserve-* target/release/build/kinserve-* \
-      target/release/deps/kinserve-* target/release/deps/libkinserve-* \
+    cargo build --release --locked -p kinserve --bin kinserve; \
+    rm -rf src benches tests examples build.rs crates/*/src \
+      target/release/.fingerprint/kinserve* target/release/build/kinserve* \
+      target/release/deps/kinserve* target/release/deps/libkinserve* \
       target/release/kinserve*
 
-# 2) The real sources: only the kinserve crate itself is compiled here.
+# 2) The real sources: only the kinserve binary and the crates it depends on
+#    (kinserve-kinematics, kinserve-model) are compiled here; the load
+#    generator and the test kit are workspace members but not built.
 #    Targets whose sources stay out of the context (benches, tests) get their
 #    stubs again; real files (src/bin/*.rs) are left alone.
 COPY build.rs ./
 COPY proto ./proto
 # robots/ too: the library embeds a few built-in models (src/fuzzing.rs).
-COPY robots ./robots
+COPY crates ./crates
 COPY src ./src
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
     set -eu; \
     while read -r f; do \
       if [ ! -e "$f" ]; then mkdir -p "$(dirname "$f")"; echo 'fn main() {}' > "$f"; fi; \
     done < .stub-targets; \
-    cargo build --release --locked --bin kinserve; \
+    cargo build --release --locked -p kinserve --bin kinserve; \
     install -D -m 0755 target/release/kinserve /out/kinserve; \
     /out/kinserve --version
 

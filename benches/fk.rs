@@ -5,8 +5,9 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use kinserve::kinematics::Transform;
+use kinserve::kinematics::{Kernel, Transform};
 use kinserve::model::load_robot_file;
+use kinserve_testkit::forward_reference;
 
 fn robot(name: &str) -> kinserve::model::Robot {
     let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
@@ -41,7 +42,7 @@ fn single(c: &mut Criterion) {
             })
         });
         g.bench_function("plain_product", |b| {
-            b.iter(|| chain.forward_reference(black_box(&q), 1.0))
+            b.iter(|| forward_reference(chain, black_box(&q), 1.0))
         });
         g.finish();
     }
@@ -60,7 +61,7 @@ fn batch(c: &mut Criterion) {
             b.iter(|| chain.forward_batch(black_box(&q), 1.0, &mut out))
         });
         g.bench_function("portable", |b| {
-            b.iter(|| chain.forward_batch_portable(black_box(&q), 1.0, &mut out))
+            b.iter(|| chain.forward_batch_with(Kernel::Portable, black_box(&q), 1.0, &mut out))
         });
         g.finish();
     }

@@ -7,7 +7,7 @@
 # Targets: `model` (robot model parsing + validation + FK at in-limit
 # configurations) and `fk_request` (REST single/batch FK bodies and the
 # WebSocket message, decoded and evaluated). The properties they check live in
-# `kinserve::fuzzing` (src/fuzzing.rs).
+# `kinserve_testkit::fuzzing` (crates/kinserve-testkit/src/fuzzing.rs).
 #
 # Corpus: fuzz/corpus/<target>/ (kept small and commit-worthy: minimised with
 # `cargo fuzz cmin` once it holds more than FUZZ_CORPUS_MAX files).

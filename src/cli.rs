@@ -6,9 +6,10 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
+use crate::api::pose::{FkOutput, Pose};
 use crate::config::{Cli, Command, FkArgs, ServeConfig};
 use crate::error::Error;
-use crate::model::{AngleUnit, FkOptions, FkOutput, Pose, load_robot_file};
+use crate::model::{AngleUnit, FkOptions, load_robot_file};
 
 /// Runs the command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
@@ -70,7 +71,7 @@ fn validate(files: &[std::path::PathBuf]) -> ExitCode {
             ),
             Err(e) => {
                 failed += 1;
-                print_error(&f.display().to_string(), &e);
+                print_error(&f.display().to_string(), &e.into());
             }
         }
     }
@@ -109,7 +110,7 @@ fn fk(args: &FkArgs) -> ExitCode {
     let robot = match load_robot_file(&path) {
         Ok(r) => r,
         Err(e) => {
-            print_error(&label, &e);
+            print_error(&label, &e.into());
             return ExitCode::FAILURE;
         }
     };
@@ -121,13 +122,10 @@ fn fk(args: &FkArgs) -> ExitCode {
         },
         check_limits: !args.no_limits,
     };
-    let result = if args.frames {
-        robot
-            .fk_frames_checked(&args.joints, &opts)
-            .map(|(t, f)| (t, Some(f.iter().map(Pose::from).collect())))
-    } else {
-        robot.fk_checked(&args.joints, &opts).map(|t| (t, None))
-    };
+    let result = robot.check_joints(&args.joints, &opts).map(|q| {
+        let (t, frames) = q.fk_with_frames(args.frames);
+        (t, frames.map(|f| f.iter().map(Pose::from).collect()))
+    });
     match result {
         Ok((t, frames)) => {
             let out = FkOutput {
@@ -148,7 +146,7 @@ fn fk(args: &FkArgs) -> ExitCode {
             }
         }
         Err(e) => {
-            print_error("--joints", &e);
+            print_error("--joints", &e.into());
             ExitCode::FAILURE
         }
     }

@@ -6,6 +6,8 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use crate::api::grpc::GrpcSettings;
+use crate::api::rest::RestSettings;
 use crate::model::ModelLimits;
 use crate::service::ServiceLimits;
 
@@ -146,10 +148,10 @@ pub struct ServeConfig {
     #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
     pub max_batch: usize,
     /// Most movable joints in a model.
-    #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = 64)]
+    #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS)]
     pub max_joints: usize,
     /// Most DH rows (movable and fixed) in a model.
-    #[arg(long, env = "KINSERVE_MAX_LINKS", default_value_t = 256)]
+    #[arg(long, env = "KINSERVE_MAX_LINKS", default_value_t = ModelLimits::DEFAULT_MAX_LINKS)]
     pub max_links: usize,
     /// Largest request body in bytes (all routes but batch).
     #[arg(long, env = "KINSERVE_MAX_BODY_BYTES", default_value_t = 1 << 20)]
@@ -243,8 +245,8 @@ impl ServeConfig {
             cors_origins: Vec::new(),
             log_format: LogFormat::Human,
             max_batch: 10_000,
-            max_joints: 64,
-            max_links: 256,
+            max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
+            max_links: ModelLimits::DEFAULT_MAX_LINKS,
             max_body_bytes: 1 << 20,
             max_batch_body_bytes: 16 << 20,
             max_concurrent_requests: 1024,
@@ -252,6 +254,26 @@ impl ServeConfig {
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
             shutdown_timeout: Duration::from_secs(10),
+        }
+    }
+
+    /// What the REST adapter is given.
+    pub fn rest_settings(&self) -> RestSettings {
+        RestSettings {
+            max_body_bytes: self.max_body_bytes,
+            max_batch_body_bytes: self.max_batch_body_bytes,
+            request_timeout: self.request_timeout,
+            stream_idle_timeout: self.stream_idle_timeout,
+            cors_origins: self.cors_origins.clone(),
+        }
+    }
+
+    /// What the gRPC adapter is given.
+    pub fn grpc_settings(&self) -> GrpcSettings {
+        GrpcSettings {
+            max_message_bytes: self.max_batch_body_bytes,
+            request_timeout: self.request_timeout,
+            stream_idle_timeout: self.stream_idle_timeout,
         }
     }
 

@@ -2,53 +2,8 @@
 //! it to problem+json (`api::rest::problem`) and the gRPC adapter to a status
 //! (`api::grpc::status`), each in one exhaustive `match`.
 
-use std::fmt;
-
-/// A rule broken by one field of the input, e.g. `links[3].alpha` or
-/// `configurations[17][2]`.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct FieldViolation {
-    /// Path of the offending field (`links[3].alpha`, `joints[2]`, `name`).
-    pub field: String,
-    /// What is wrong with it, in plain words.
-    pub message: String,
-}
-
-impl FieldViolation {
-    /// A violation of `field` described by `message`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-
-    /// The same violation with `prefix` put in front of its field path
-    /// (`configurations[3]` + `[2]` → `configurations[3][2]`; `model` + `name` → `model.name`).
-    pub fn prefixed(mut self, prefix: &str) -> Self {
-        if prefix.is_empty() {
-            return self;
-        }
-        self.field = if self.field.is_empty() {
-            prefix.to_string()
-        } else if self.field.starts_with('[') {
-            format!("{prefix}{}", self.field)
-        } else {
-            format!("{prefix}.{}", self.field)
-        };
-        self
-    }
-}
-
-impl fmt::Display for FieldViolation {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.field.is_empty() {
-            write!(f, "{}", self.message)
-        } else {
-            write!(f, "{}: {}", self.field, self.message)
-        }
-    }
-}
+pub use kinserve_model::FieldViolation;
+use kinserve_model::{ModelError, summary};
 
 /// Everything that can go wrong in kinserve, by what the client should do about it.
 #[derive(Debug, thiserror::Error)]
@@ -139,26 +94,17 @@ pub enum Error {
 impl Error {
     /// An [`Error::Invalid`] with a single field violation.
     pub fn invalid_field(field: impl Into<String>, message: impl Into<String>) -> Self {
-        let v = FieldViolation::new(field, message);
-        Error::Invalid {
-            detail: v.to_string(),
-            violations: vec![v],
-        }
+        ModelError::invalid_field(field, message).into()
     }
 
     /// An [`Error::Invalid`] from a list of violations (summary: the first one, and a count).
     pub fn invalid(violations: Vec<FieldViolation>) -> Self {
-        let detail = summary(&violations);
-        Error::Invalid { detail, violations }
+        ModelError::invalid(violations).into()
     }
 
     /// An [`Error::Malformed`] with a single field violation.
     pub fn malformed_field(field: impl Into<String>, message: impl Into<String>) -> Self {
-        let v = FieldViolation::new(field, message);
-        Error::Malformed {
-            detail: v.to_string(),
-            violations: vec![v],
-        }
+        ModelError::malformed_field(field, message).into()
     }
 
     /// Field violations carried by this error (empty for kinds without fields).
@@ -189,11 +135,12 @@ impl Error {
     }
 }
 
-fn summary(violations: &[FieldViolation]) -> String {
-    match violations {
-        [] => "invalid input".to_string(),
-        [one] => one.to_string(),
-        [first, rest @ ..] => format!("{first} (and {} more)", rest.len()),
+impl From<ModelError> for Error {
+    fn from(e: ModelError) -> Self {
+        match e {
+            ModelError::Malformed { detail, violations } => Error::Malformed { detail, violations },
+            ModelError::Invalid { detail, violations } => Error::Invalid { detail, violations },
+        }
     }
 }
 

@@ -205,19 +205,19 @@ impl Service {
 
     /// Checked FK of one configuration: the tool pose.
     pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
-        let t = robot.fk_checked(q, opts)?;
+        let t = robot.check_joints(q, opts)?.fk();
         self.poses_counter().increment(1);
         Ok(t)
     }
 
-    /// Checked FK of one configuration with every frame (see [`Robot::fk_frames_checked`]).
+    /// Checked FK of one configuration with every frame (see [`crate::model::JointVector::fk_frames`]).
     pub fn fk_frames(
         &self,
         robot: &Robot,
         q: &[f64],
         opts: &FkOptions,
     ) -> Result<(Transform, Vec<Transform>)> {
-        let r = robot.fk_frames_checked(q, opts)?;
+        let r = robot.check_joints(q, opts)?.fk_frames();
         self.poses_counter().increment(1);
         Ok(r)
     }
@@ -231,11 +231,9 @@ impl Service {
         opts: &FkOptions,
         frames: bool,
     ) -> Result<(Transform, Option<Vec<Transform>>)> {
-        if frames {
-            self.fk_frames(robot, q, opts).map(|(t, f)| (t, Some(f)))
-        } else {
-            self.fk(robot, q, opts).map(|t| (t, None))
-        }
+        let r = robot.check_joints(q, opts)?.fk_with_frames(frames);
+        self.poses_counter().increment(1);
+        Ok(r)
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
@@ -261,17 +259,9 @@ impl Service {
         opts: &FkOptions,
     ) -> Result<Vec<Transform>> {
         self.check_batch_size(configs.len())?;
-        let mut offset = 0usize;
-        for (i, &len) in configs.lens.iter().enumerate() {
-            let len = len as usize;
-            let q = configs.values.get(offset..offset + len).unwrap_or(&[]);
-            robot.check_joints_at(q, opts, || format!("configurations[{i}]"))?;
-            offset += len;
-        }
-        let mut out = vec![Transform::IDENTITY; configs.len()];
-        robot
-            .chain()
-            .forward_batch(&configs.values, opts.angle_unit.to_rad(), &mut out);
+        let out = robot
+            .check_batch(&configs.values, &configs.lens, opts)?
+            .fk();
         self.poses_counter().increment(out.len() as u64);
         Ok(out)
     }

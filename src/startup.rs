@@ -13,7 +13,8 @@ use hyper_util::server::conn::auto;
 use hyper_util::server::graceful::GracefulShutdown;
 use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
-use tokio::sync::{Semaphore, watch};
+use tokio::sync::Semaphore;
+use tokio_util::sync::CancellationToken;
 use tower::ServiceExt;
 
 use crate::api::rest::{self, AppInner, AppState};
@@ -28,18 +29,18 @@ pub struct App {
     http_addr: SocketAddr,
     grpc_addr: SocketAddr,
     service: Arc<Service>,
-    config: Arc<ServeConfig>,
-    shutdown_tx: watch::Sender<bool>,
+    config: ServeConfig,
+    shutdown: CancellationToken,
 }
 
 /// Triggers a graceful shutdown of a running [`App`].
 #[derive(Clone, Debug)]
-pub struct ShutdownHandle(watch::Sender<bool>);
+pub struct ShutdownHandle(CancellationToken);
 
 impl ShutdownHandle {
     /// Starts the graceful shutdown (readiness flips, streams close, in-flight requests finish).
     pub fn shutdown(&self) {
-        let _ = self.0.send(true);
+        self.0.cancel();
     }
 }
 
@@ -71,15 +72,14 @@ impl App {
         let service = Arc::new(Service::new(registry, limits, config.api_token.clone()));
         let http = TcpListener::bind(config.http_addr).await?;
         let grpc = TcpListener::bind(config.grpc_addr).await?;
-        let (shutdown_tx, _) = watch::channel(false);
         Ok(App {
             http_addr: http.local_addr()?,
             grpc_addr: grpc.local_addr()?,
             http,
             grpc,
             service,
-            config: Arc::new(config),
-            shutdown_tx,
+            config,
+            shutdown: CancellationToken::new(),
         })
     }
 
@@ -110,7 +110,7 @@ impl App {
 
     /// A handle that stops the server gracefully.
     pub fn shutdown_handle(&self) -> ShutdownHandle {
-        ShutdownHandle(self.shutdown_tx.clone())
+        ShutdownHandle(self.shutdown.clone())
     }
 
     /// Serves until [`ShutdownHandle::shutdown`] or SIGTERM/SIGINT, then drains.
@@ -120,58 +120,56 @@ impl App {
             grpc,
             service,
             config,
-            shutdown_tx,
+            shutdown,
             http_addr,
             grpc_addr,
         } = self;
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
         let state = AppState::new(AppInner {
             service: service.clone(),
-            config: config.clone(),
-            shutdown: shutdown_tx.subscribe(),
+            settings: config.rest_settings(),
+            shutdown: shutdown.clone(),
             metrics: crate::telemetry::metrics_handle(),
             permits: permits.clone(),
         });
         service.record_robot_count();
         let router = rest::router(state);
-        let mut rx = shutdown_tx.subscribe();
-        let signal_tx = shutdown_tx.clone();
+        let on_signal = shutdown.clone();
         tokio::spawn(async move {
             tokio::select! {
-                _ = os_signal() => { let _ = signal_tx.send(true); }
-                _ = rx.wait_for(|s| *s) => {}
+                _ = os_signal() => on_signal.cancel(),
+                _ = on_signal.cancelled() => {}
             }
         });
         let grpc_server = crate::api::grpc::serve(
             grpc,
             service.clone(),
-            config.clone(),
+            config.grpc_settings(),
             permits,
-            shutdown_tx.subscribe(),
+            shutdown.clone(),
         );
         let http_server = serve_http(
             http,
             router,
             config.header_timeout,
             config.max_batch_body_bytes,
-            shutdown_tx.subscribe(),
+            shutdown.clone(),
         );
         service.set_ready(true);
         tracing::info!(http = %http_addr, grpc = %grpc_addr, "kinserve serving");
-        let mut ready_rx = shutdown_tx.subscribe();
         let svc = service.clone();
-        let drain_timeout = config.shutdown_timeout;
+        let draining = shutdown.clone();
         tokio::spawn(async move {
-            let _ = ready_rx.wait_for(|s| *s).await;
+            draining.cancelled().await;
             svc.set_ready(false);
             tracing::info!("shutdown requested: draining");
         });
         let both = async { tokio::try_join!(http_server.into_future(), grpc_server) };
-        let mut deadline_rx = shutdown_tx.subscribe();
+        let drain_timeout = config.shutdown_timeout;
         tokio::select! {
             r = both => { r?; }
             _ = async {
-                let _ = deadline_rx.wait_for(|s| *s).await;
+                shutdown.cancelled().await;
                 tokio::time::sleep(drain_timeout).await;
             } => {
                 tracing::warn!("in-flight requests did not finish within the shutdown timeout");
@@ -200,7 +198,7 @@ async fn serve_http(
     router: Router,
     header_timeout: Duration,
     max_body_bytes: usize,
-    mut shutdown: watch::Receiver<bool>,
+    shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     let header_timeout = header_timeout.max(Duration::from_millis(1));
     let mut builder = auto::Builder::new(TokioExecutor::new());
@@ -218,7 +216,7 @@ async fn serve_http(
     let graceful = GracefulShutdown::new();
     loop {
         let (tcp, _peer) = tokio::select! {
-            _ = shutdown_started(&mut shutdown) => break,
+            _ = shutdown.cancelled() => break,
             r = listener.accept() => match r {
                 Ok(conn) => conn,
                 Err(e) => {
@@ -423,9 +421,4 @@ async fn os_signal() {
     {
         let _ = tokio::signal::ctrl_c().await;
     }
-}
-
-/// Resolves once `rx` says shutdown has started (or its sender is gone).
-pub async fn shutdown_started(rx: &mut watch::Receiver<bool>) {
-    let _ = rx.wait_for(|stop| *stop).await;
 }

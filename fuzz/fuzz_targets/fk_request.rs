@@ -1,11 +1,11 @@
 //! FK request decoding (REST single and batch bodies, WebSocket message) and
 //! evaluation against built-in robots: client errors or finite rigid poses.
-//! The checks are `kinserve::fuzzing::check_fk_request`.
+//! The checks are `kinserve_testkit::fuzzing::check_fk_request`.
 
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    kinserve::fuzzing::check_fk_request(data);
+    kinserve_testkit::fuzzing::check_fk_request(data);
 });

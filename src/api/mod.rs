@@ -18,4 +18,5 @@
 )]
 
 pub mod grpc;
+pub mod pose;
 pub mod rest;

@@ -14,7 +14,7 @@ use arc_swap::ArcSwap;
 pub use store::{FileStore, MemoryStore, Store};
 
 use crate::error::{Error, Result};
-use crate::model::{ModelLimits, Robot, RobotSpec, parse_json};
+use crate::model::{ModelLimits, Robot, load_robot_file_with};
 
 /// Where a robot came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,12 +96,7 @@ impl Registry {
         let mut map = Map::clone(&self.map.load());
         for path in paths {
             let label = path.display().to_string();
-            let result = std::fs::read(&path)
-                .map_err(|e| Error::Storage {
-                    detail: format!("cannot read {label}: {e}"),
-                })
-                .and_then(|b| parse_json::<RobotSpec>(&b))
-                .and_then(|s| Robot::from_spec(s, limits));
+            let result = load_robot_file_with(&path, limits).map_err(Error::from);
             match result {
                 Ok(robot) => {
                     map.insert(
@@ -127,7 +122,7 @@ impl Registry {
         let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
         let mut map = Map::clone(&self.map.load());
         for (label, spec) in self.store.load_all() {
-            match spec.and_then(|s| Robot::from_spec(s, limits)) {
+            match spec.and_then(|s| Ok(Robot::from_spec(s, limits)?)) {
                 Ok(robot) => {
                     if map
                         .get(robot.name())

@@ -107,7 +107,7 @@ impl Store for FileStore {
                 let label = p.display().to_string();
                 let spec = fs::read(&p)
                     .map_err(|e| storage("cannot read", &p, e))
-                    .and_then(|b| parse_json::<RobotSpec>(&b))
+                    .and_then(|b| Ok(parse_json::<RobotSpec>(&b)?))
                     .and_then(|s| {
                         let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned());
                         if stem.as_deref() == Some(s.name.as_str()) {

@@ -1,5 +1,6 @@
 //! The `kinserve` command line: `fk` and `validate`.
 
+use kinserve_testkit::RobotExt;
 use std::process::Command;
 
 fn kinserve() -> Command {

@@ -25,8 +25,9 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
 
-use kinserve::kinematics::{Convention, JointKind, Transform, link_transform};
+use kinserve::kinematics::{Convention, DhRow, JointKind, Transform, link_transform};
 use kinserve::model::{Robot, load_robot_file};
+use kinserve_testkit::RobotExt;
 use nalgebra::Matrix4;
 
 /// Configurations evaluated per closed form.
@@ -607,7 +608,18 @@ fn standard_link_matrix_matches_lecture_formula() {
                 [0.0, sa, ca, dd],
                 [0.0, 0.0, 0.0, 1.0],
             ];
-            let got = link_transform(Convention::Standard, kind, a, alpha, d, theta, q).matrix();
+            let got = link_transform(
+                Convention::Standard,
+                &DhRow {
+                    kind,
+                    a,
+                    alpha,
+                    d,
+                    theta,
+                },
+                q,
+            )
+            .matrix();
             assert_close(
                 &got,
                 &want,
@@ -640,7 +652,18 @@ fn modified_link_matrix_matches_lecture_formula() {
                 [st * sa, ct * sa, ca, dd * ca],
                 [0.0, 0.0, 0.0, 1.0],
             ];
-            let got = link_transform(Convention::Modified, kind, a, alpha, d, theta, q).matrix();
+            let got = link_transform(
+                Convention::Modified,
+                &DhRow {
+                    kind,
+                    a,
+                    alpha,
+                    d,
+                    theta,
+                },
+                q,
+            )
+            .matrix();
             assert_close(
                 &got,
                 &want,
@@ -673,15 +696,14 @@ fn link_matrix_inverse_matches_closed_form_and_numeric_inverse() {
             [sa * st, -sa * ct, ca, -d * ca],
             [0.0, 0.0, 0.0, 1.0],
         ];
-        let link = link_transform(
-            Convention::Standard,
-            JointKind::Fixed,
+        let row = DhRow {
+            kind: JointKind::Fixed,
             a,
             alpha,
             d,
             theta,
-            0.0,
-        );
+        };
+        let link = link_transform(Convention::Standard, &row, 0.0);
         let numeric = to_na(&link.matrix())
             .try_inverse()
             .expect("a link matrix is invertible");

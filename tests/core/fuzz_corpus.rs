@@ -1,12 +1,12 @@
 //! Replays the fuzzing corpus in an ordinary `cargo test`: every file under
 //! `fuzz/corpus/<target>/`, `fuzz/regressions/<target>/` and (when a fuzzing run
 //! left any) `fuzz/artifacts/<target>/` goes through the same property check
-//! as the `cargo fuzz` target of that name (`kinserve::fuzzing`).
+//! as the `cargo fuzz` target of that name (`kinserve_testkit::fuzzing`).
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
-use kinserve::fuzzing::{check_fk_request, check_model};
+use kinserve_testkit::fuzzing::{check_fk_request, check_model};
 
 fn files(target: &str) -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
@@ -76,8 +76,7 @@ fn fk_request_corpus_replays_clean() {
 /// schema says object. Every model object must now be a JSON object.
 #[test]
 fn model_objects_written_as_arrays_are_refused() {
-    use kinserve::Error;
-    use kinserve::model::{ModelLimits, Robot};
+    use kinserve::model::{ModelError, ModelLimits, Robot};
     let link = r#"{"joint": "revolute", "a": 1, "alpha": 0, "d": 0, "theta": 0}"#;
     let ok = format!(r#"{{"name": "r", "convention": "standard", "links": [{link}]}}"#);
     assert!(Robot::from_json(ok.as_bytes(), &ModelLimits::default()).is_ok());
@@ -97,7 +96,7 @@ fn model_objects_written_as_arrays_are_refused() {
     ];
     for b in &bad {
         match Robot::from_json(b.as_bytes(), &ModelLimits::default()) {
-            Err(Error::Malformed { detail, .. }) => {
+            Err(ModelError::Malformed { detail, .. }) => {
                 assert!(detail.contains("expected a JSON object"), "{b}: {detail}")
             }
             other => panic!("{b}: expected a malformed-input error, got {other:?}"),

@@ -1,8 +1,9 @@
 //! The fast FK paths against the plain product of link matrices, and the
 //! vectorised sine/cosine against `std`.
 
-use kinserve::kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_portable};
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve::kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
+use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Kernel, Transform};
+use kinserve_testkit::{forward_reference, supported_kernels};
 
 /// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
 pub struct Rng(pub u64);
@@ -43,7 +44,7 @@ fn sincos_matches_std_over_range() {
         if simd {
             sincos_slice(&xs, &mut s, &mut c);
         } else {
-            sincos_slice_portable(&xs, &mut s, &mut c);
+            sincos_slice_with(Kernel::Portable, &xs, &mut s, &mut c);
         }
         let mut worst: f64 = 0.0;
         for i in 0..xs.len() {
@@ -121,30 +122,23 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
             let dof = chain.dof();
             let count = 37; // not a multiple of the batch block size
             let qs: Vec<f64> = (0..count * dof).map(|_| rng.range(-6.0, 6.0)).collect();
-            let mut batch = vec![Transform::IDENTITY; count];
-            let mut batch_portable = vec![Transform::IDENTITY; count];
-            chain.forward_batch(&qs, 1.0, &mut batch);
-            chain.forward_batch_portable(&qs, 1.0, &mut batch_portable);
-            for k in 0..count {
-                let q = &qs[k * dof..(k + 1) * dof];
-                let reference = chain.forward_reference(q, 1.0);
-                let fast = chain.forward(q, 1.0);
-                let portable = chain.forward_portable(q, 1.0);
-                let (framed, frames) = chain.forward_frames(q, 1.0);
-                for (what, t) in [
-                    ("single", fast),
-                    ("portable single", portable),
-                    ("batch", batch[k]),
-                    ("portable batch", batch_portable[k]),
-                    ("frames", framed),
-                ] {
-                    let e = t.max_abs_diff(&reference);
-                    assert!(
-                        e <= FAST_PATH_TOL,
-                        "{convention:?} n={n} {what}: diff {e:e}"
-                    );
+            for kernel in supported_kernels() {
+                let mut batch = vec![Transform::IDENTITY; count];
+                chain.forward_batch_with(kernel, &qs, 1.0, &mut batch);
+                for k in 0..count {
+                    let q = &qs[k * dof..(k + 1) * dof];
+                    let reference = forward_reference(&chain, q, 1.0);
+                    let single = chain.forward_with(kernel, q, 1.0);
+                    let (framed, frames) = chain.forward_frames(q, 1.0);
+                    for (what, t) in [("single", single), ("batch", batch[k]), ("frames", framed)] {
+                        let e = t.max_abs_diff(&reference);
+                        assert!(
+                            e <= FAST_PATH_TOL,
+                            "{convention:?} n={n} {kernel:?} {what}: diff {e:e}"
+                        );
+                    }
+                    assert_eq!(frames.len(), chain.rows() + 1);
                 }
-                assert_eq!(frames.len(), chain.rows() + 1);
             }
         }
     }
@@ -170,12 +164,12 @@ fn huge_joint_values_still_match_the_plain_product() {
         let q = [x, 0.5, -x, 0.1, 2.0];
         let e = chain
             .forward(&q, 1.0)
-            .max_abs_diff(&chain.forward_reference(&q, 1.0));
+            .max_abs_diff(&forward_reference(&chain, &q, 1.0));
         assert!(e <= 1e-9, "q={x}: {e:e}");
         let mut out = vec![Transform::IDENTITY; 8];
         let qs: Vec<f64> = q.iter().cycle().take(8 * 5).copied().collect();
         chain.forward_batch(&qs, 1.0, &mut out);
-        assert!(out[7].max_abs_diff(&chain.forward_reference(&q, 1.0)) <= 1e-9);
+        assert!(out[7].max_abs_diff(&forward_reference(&chain, &q, 1.0)) <= 1e-9);
     }
 }
 

@@ -1,9 +1,10 @@
 //! Model validation: every robot file validates; bad models give the documented field errors.
 
-use kinserve::Error;
+use kinserve::model::ModelError as Error;
 use kinserve::model::{
     AngleUnit, FkOptions, ModelLimits, Robot, RobotSpec, load_robot_file, parse_json,
 };
+use kinserve_testkit::RobotExt;
 use serde_json::json;
 
 fn robots_dir() -> std::path::PathBuf {
@@ -177,11 +178,11 @@ fn joint_checks_name_the_index_and_the_limits() {
     let spec: RobotSpec = parse_json(&serde_json::to_vec(&base_model()).unwrap()).unwrap();
     let robot = Robot::from_spec(spec, &ModelLimits::default()).unwrap();
     let opts = FkOptions::default();
-    let e = robot.fk_checked(&[0.0], &opts).unwrap_err();
+    let e = robot.fk(&[0.0], &opts).unwrap_err();
     assert_eq!(e.violations()[0].field, "joints");
-    let e = robot.fk_checked(&[f64::NAN, 0.1], &opts).unwrap_err();
+    let e = robot.fk(&[f64::NAN, 0.1], &opts).unwrap_err();
     assert_eq!(e.violations()[0].field, "joints[0]");
-    let e = robot.fk_checked(&[0.0, 0.7], &opts).unwrap_err();
+    let e = robot.fk(&[0.0, 0.7], &opts).unwrap_err();
     assert_eq!(e.violations()[0].field, "joints[1]");
     assert!(
         e.violations()[0].message.contains("[0, 0.5]"),
@@ -191,7 +192,7 @@ fn joint_checks_name_the_index_and_the_limits() {
     // Limits off: computed anyway. Degrees: 57° is inside ±1 rad, 58° is not.
     assert!(
         robot
-            .fk_checked(
+            .fk(
                 &[0.0, 0.7],
                 &FkOptions {
                     check_limits: false,
@@ -204,8 +205,8 @@ fn joint_checks_name_the_index_and_the_limits() {
         angle_unit: AngleUnit::Deg,
         ..opts
     };
-    assert!(robot.fk_checked(&[57.0, 0.1], &deg).is_ok());
-    let e = robot.fk_checked(&[58.0, 0.1], &deg).unwrap_err();
+    assert!(robot.fk(&[57.0, 0.1], &deg).is_ok());
+    let e = robot.fk(&[58.0, 0.1], &deg).unwrap_err();
     assert!(
         e.violations()[0].message.contains("deg"),
         "{}",

@@ -1,6 +1,7 @@
 //! Property tests (proptest) over random DH tables and configurations.
 
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Kernel, Transform};
+use kinserve_testkit::forward_reference;
 use proptest::prelude::*;
 
 fn kind() -> impl Strategy<Value = JointKind> {
@@ -118,9 +119,9 @@ proptest! {
     fn fast_paths_match_the_plain_product((rows, q) in table(), base in rigid()) {
         for convention in [Convention::Standard, Convention::Modified] {
             let chain = Chain::new(convention, &rows, base, None);
-            let reference = chain.forward_reference(&q, 1.0);
+            let reference = forward_reference(&chain, &q, 1.0);
             prop_assert!(chain.forward(&q, 1.0).max_abs_diff(&reference) <= TOL);
-            prop_assert!(chain.forward_portable(&q, 1.0).max_abs_diff(&reference) <= TOL);
+            prop_assert!(chain.forward_with(Kernel::Portable, &q, 1.0).max_abs_diff(&reference) <= TOL);
         }
     }
 }

@@ -16,6 +16,7 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 use std::path::Path;
 
 use kinserve::model::{Robot, load_robot_file};
+use kinserve_testkit::RobotExt;
 
 type M4 = [[f64; 4]; 4];
 

@@ -1,6 +1,7 @@
 //! The README's model examples are valid models (so the front door stays true).
 
 use kinserve::model::{ModelLimits, Robot};
+use kinserve_testkit::RobotExt;
 
 #[test]
 fn readme_model_examples_validate_and_give_the_documented_poses() {

@@ -7,13 +7,15 @@ pub mod status;
 use std::pin::Pin;
 use std::sync::Arc;
 
+use std::time::Duration;
 use tokio::net::TcpListener;
-use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc, watch};
+
+use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc};
 use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
 use tokio_stream::{Stream, StreamExt};
+use tokio_util::sync::CancellationToken;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::config::ServeConfig;
 use crate::error::Error;
 use crate::registry::PutMode;
 use crate::service::{Configurations, Service};
@@ -51,13 +53,25 @@ const STREAM_WINDOW: u32 = 64 << 10;
 /// HTTP/2 receive window of a connection (sets h2's small-frame budget to half of it).
 const CONNECTION_WINDOW: u32 = 16 << 20;
 
+/// What the gRPC adapter is configured with (start-up builds it from the
+/// command line; the adapter never sees the command line itself).
+#[derive(Clone, Debug)]
+pub struct GrpcSettings {
+    /// Largest message a client may send, in bytes.
+    pub max_message_bytes: usize,
+    /// Longest time a unary call may take.
+    pub request_timeout: Duration,
+    /// A stream with no message from the client for this long is closed.
+    pub stream_idle_timeout: Duration,
+}
+
 /// The gRPC service over the shared [`Service`].
 #[derive(Clone)]
 pub struct GrpcService {
     service: Arc<Service>,
-    config: Arc<ServeConfig>,
+    settings: Arc<GrpcSettings>,
     permits: Arc<Semaphore>,
-    shutdown: watch::Receiver<bool>,
+    shutdown: CancellationToken,
 }
 
 /// The `authorization` metadata value of a request, if readable.
@@ -213,13 +227,13 @@ impl KinematicsService for GrpcService {
         let mut inbound = req.into_inner();
         let (tx, rx) = mpsc::channel(STREAM_BUFFER);
         let this = self.clone();
-        let idle = self.config.stream_idle_timeout;
-        let mut shutdown = self.shutdown.clone();
+        let idle = self.settings.stream_idle_timeout;
+        let shutdown = self.shutdown.clone();
         tokio::spawn(async move {
             let _permit = permit;
             loop {
                 let next = tokio::select! {
-                    _ = crate::startup::shutdown_started(&mut shutdown) => {
+                    _ = shutdown.cancelled() => {
                         let _ = tx.send(Err(Status::unavailable("server shutting down"))).await;
                         return;
                     }
@@ -298,13 +312,13 @@ fn panic_response(
     Status::from(panicked()).into_http()
 }
 
-/// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` turns true.
+/// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` is cancelled.
 pub async fn serve(
     listener: TcpListener,
     service: Arc<Service>,
-    config: Arc<ServeConfig>,
+    settings: GrpcSettings,
     permits: Arc<Semaphore>,
-    shutdown: watch::Receiver<bool>,
+    shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     let (health, health_service) = tonic_health::server::health_reporter();
     health
@@ -325,10 +339,11 @@ pub async fn serve(
     }
     let reflection_v1 = v1.build_v1().map_err(std::io::Error::other)?;
     let reflection_v1alpha = v1alpha.build_v1alpha().map_err(std::io::Error::other)?;
-    let max_message = config.max_batch_body_bytes;
+    let max_message = settings.max_message_bytes;
+    let request_timeout = settings.request_timeout;
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
-        config: config.clone(),
+        settings: Arc::new(settings),
         permits,
         shutdown: shutdown.clone(),
     })
@@ -337,7 +352,6 @@ pub async fn serve(
     // Oversized messages: RESOURCE_EXHAUSTED, not tonic's OUT_OF_RANGE; undecodable
     // ones INVALID_ARGUMENT, not INTERNAL; unknown methods named.
     let kin = oversize::WireErrorStatuses(kin);
-    let mut shutdown_rx = shutdown;
     // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to listeners it binds).
     let incoming = TcpListenerStream::new(listener).map(|s| {
         s.inspect(|tcp| {
@@ -349,7 +363,7 @@ pub async fn serve(
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,
         ))
-        .timeout(config.request_timeout)
+        .timeout(request_timeout)
         .tcp_nodelay(true)
         .initial_stream_window_size(STREAM_WINDOW)
         .initial_connection_window_size(CONNECTION_WINDOW)
@@ -359,7 +373,7 @@ pub async fn serve(
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .serve_with_incoming_shutdown(incoming, async move {
-            let _ = shutdown_rx.wait_for(|s| *s).await;
+            shutdown.cancelled().await;
             health_on_stop
                 .set_not_serving::<KinematicsServiceServer<GrpcService>>()
                 .await;

@@ -7,8 +7,9 @@ use serde::ser::SerializeSeq;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use utoipa::ToSchema;
 
+use crate::api::pose::Pose;
 use crate::kinematics::Transform;
-use crate::model::{AngleUnit, ConventionSpec, FkOptions, LengthUnit, Pose};
+use crate::model::{AngleUnit, ConventionSpec, FkOptions, LengthUnit};
 use crate::service::Configurations;
 
 fn default_true() -> bool {

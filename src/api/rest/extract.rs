@@ -69,9 +69,9 @@ impl<T: DeserializeOwned> JsonBody<T> {
             }
         }
         let limit = if req.uri().path().ends_with("/fk/batch") {
-            state.config.max_batch_body_bytes
+            state.settings.max_batch_body_bytes
         } else {
-            state.config.max_body_bytes
+            state.settings.max_body_bytes
         };
         let bytes = axum::body::to_bytes(req.into_body(), limit)
             .await
@@ -108,7 +108,7 @@ pub fn parse_object<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Error> {
             violations: Vec::new(),
         });
     }
-    parse_json(bytes)
+    Ok(parse_json(bytes)?)
 }
 
 /// The `{name}` path segment of a robot route.

@@ -11,8 +11,9 @@ use super::dto::{
 };
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
+use crate::api::pose::{FkOutput, Pose};
 use crate::error::Error;
-use crate::model::{FkOutput, Pose, RobotSpec};
+use crate::model::RobotSpec;
 use crate::registry::{Origin, PutMode};
 
 type ApiResult<T> = Result<T, ApiError>;

@@ -8,7 +8,7 @@ pub mod problem;
 mod ws;
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::extract::{MatchedPath, Request, State};
@@ -18,7 +18,8 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use metrics::SharedString;
 use metrics_exporter_prometheus::PrometheusHandle;
-use tokio::sync::{Semaphore, watch};
+use tokio::sync::Semaphore;
+use tokio_util::sync::CancellationToken;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::cors::{AllowOrigin, Any, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
@@ -30,7 +31,6 @@ use utoipa_swagger_ui::SwaggerUi;
 pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
 pub use problem::{ApiError, Problem, ProblemField};
 
-use crate::config::ServeConfig;
 use crate::error::Error;
 use crate::service::Service;
 
@@ -52,14 +52,30 @@ impl std::ops::Deref for AppState {
     }
 }
 
+/// What the REST adapter is configured with (start-up builds it from the
+/// command line; the adapter never sees the command line itself).
+#[derive(Clone, Debug)]
+pub struct RestSettings {
+    /// Largest request body in bytes (all routes but batch); also the largest WebSocket message.
+    pub max_body_bytes: usize,
+    /// Largest batch request body in bytes.
+    pub max_batch_body_bytes: usize,
+    /// Longest time a request may take.
+    pub request_timeout: Duration,
+    /// A WebSocket with no message from the client for this long is closed.
+    pub stream_idle_timeout: Duration,
+    /// Allowed CORS origins; empty: any origin.
+    pub cors_origins: Vec<String>,
+}
+
 /// The parts of [`AppState`].
 pub struct AppInner {
     /// The shared service.
     pub service: Arc<Service>,
-    /// Server configuration (limits, timeouts).
-    pub config: Arc<ServeConfig>,
-    /// Becomes `true` when shutdown starts (streams close).
-    pub shutdown: watch::Receiver<bool>,
+    /// Limits, timeouts and CORS.
+    pub settings: RestSettings,
+    /// Cancelled when shutdown starts (streams close).
+    pub shutdown: CancellationToken,
     /// Prometheus exposition.
     pub metrics: PrometheusHandle,
     /// Admission control: one permit per request in flight.
@@ -153,7 +169,7 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
             ApiError(Error::Overloaded).into_response(),
         );
     };
-    match tokio::time::timeout(state.config.request_timeout, next.run(req)).await {
+    match tokio::time::timeout(state.settings.request_timeout, next.run(req)).await {
         Ok(resp) => resp,
         Err(_) => ApiError(Error::Unavailable {
             detail: "request timed out".into(),
@@ -250,7 +266,7 @@ fn panic_response(err: Box<dyn std::any::Any + Send + 'static>) -> Response {
     .into_response()
 }
 
-fn cors(config: &ServeConfig) -> CorsLayer {
+fn cors(origins: &[String]) -> CorsLayer {
     let layer = CorsLayer::new()
         .allow_methods([
             Method::GET,
@@ -269,11 +285,10 @@ fn cors(config: &ServeConfig) -> CorsLayer {
             header::HeaderName::from_static("x-request-id"),
             header::RETRY_AFTER,
         ]);
-    if config.cors_origins.is_empty() {
+    if origins.is_empty() {
         layer.allow_origin(Any)
     } else {
-        let origins: Vec<HeaderValue> = config
-            .cors_origins
+        let origins: Vec<HeaderValue> = origins
             .iter()
             .filter_map(|o| HeaderValue::from_str(o).ok())
             .collect();
@@ -319,7 +334,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .route("/metrics", get(metrics_text))
         .route("/", get(playground::index))
         .route("/playground/{file}", get(playground::file));
-    let config = state.config.clone();
+    let cors = cors(&state.settings.cors_origins);
     api.merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
@@ -334,5 +349,5 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         )
         .layer(PropagateRequestIdLayer::x_request_id())
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
-        .layer(cors(&config))
+        .layer(cors)
 }

@@ -11,8 +11,9 @@ use super::AppState;
 use super::dto::{PosesSer, WsIdOnly, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
+use crate::api::pose::Pose;
 use crate::error::Error;
-use crate::model::{FkOptions, Pose};
+use crate::model::FkOptions;
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
@@ -53,7 +54,7 @@ pub async fn stream(
             .into_response());
         }
     };
-    let max = state.config.max_body_bytes;
+    let max = state.settings.max_body_bytes;
     Ok(ws
         .max_message_size(max)
         .max_frame_size(max)
@@ -69,11 +70,11 @@ async fn close(socket: &mut WebSocket, reason: &'static str) {
 }
 
 async fn run(mut socket: WebSocket, state: AppState, name: String) {
-    let mut shutdown = state.shutdown.clone();
-    let idle = state.config.stream_idle_timeout;
+    let shutdown = state.shutdown.clone();
+    let idle = state.settings.stream_idle_timeout;
     loop {
         let first = tokio::select! {
-            _ = crate::startup::shutdown_started(&mut shutdown) => {
+            _ = shutdown.cancelled() => {
                 close(&mut socket, "server shutting down").await;
                 return;
             }

@@ -5,8 +5,9 @@
     reason = "matrix code reads best with explicit row/column indices"
 )]
 
-use super::sincos::{self, madd, needs_std, sincos_poly_impl};
-use super::transform::Transform;
+use crate::kernel::Kernel;
+use crate::sincos::{self, madd, needs_std, sincos_poly_impl};
+use crate::transform::Transform;
 
 /// Which Denavit–Hartenberg convention a table is written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -44,34 +45,26 @@ pub struct DhRow {
     pub theta: f64,
 }
 
-/// The homogeneous matrix of one DH link for joint value `q` (rad for revolute,
+/// The homogeneous matrix of one DH row for joint value `q` (rad for revolute,
 /// length unit for prismatic, ignored for fixed), computed plainly with `std`
-/// trigonometry and generic products. This is the reference the fast path is
-/// tested against.
-pub fn link_transform(
-    convention: Convention,
-    kind: JointKind,
-    a: f64,
-    alpha: f64,
-    d: f64,
-    theta: f64,
-    q: f64,
-) -> Transform {
-    let (theta, d) = match kind {
-        JointKind::Revolute => (theta + q, d),
-        JointKind::Prismatic => (theta, d + q),
-        JointKind::Fixed => (theta, d),
+/// trigonometry and generic products: the textbook definition, which the fast
+/// paths of [`Chain`] are tested against.
+pub fn link_transform(convention: Convention, row: &DhRow, q: f64) -> Transform {
+    let (theta, d) = match row.kind {
+        JointKind::Revolute => (row.theta + q, row.d),
+        JointKind::Prismatic => (row.theta, row.d + q),
+        JointKind::Fixed => (row.theta, row.d),
     };
     match convention {
         Convention::Standard => {
             Transform::rot_z(theta)
                 * Transform::translation(0.0, 0.0, d)
-                * Transform::translation(a, 0.0, 0.0)
-                * Transform::rot_x(alpha)
+                * Transform::translation(row.a, 0.0, 0.0)
+                * Transform::rot_x(row.alpha)
         }
         Convention::Modified => {
-            Transform::rot_x(alpha)
-                * Transform::translation(a, 0.0, 0.0)
+            Transform::rot_x(row.alpha)
+                * Transform::translation(row.a, 0.0, 0.0)
                 * Transform::rot_z(theta)
                 * Transform::translation(0.0, 0.0, d)
         }
@@ -109,10 +102,6 @@ pub struct Chain {
     base: Transform,
     tool: Option<Transform>,
 }
-
-/// Default maximum of movable joints per model (see `model::ModelLimits`);
-/// the evaluators themselves accept chains of any length.
-pub const DEFAULT_MAX_JOINTS: usize = 64;
 
 /// Poses evaluated together in the batch path (structure of arrays).
 const LANES: usize = 8;
@@ -189,26 +178,47 @@ impl Chain {
         }
     }
 
+    /// The rows as compiled, in table order (angles in rad).
+    pub fn dh_rows(&self) -> impl ExactSizeIterator<Item = DhRow> + '_ {
+        self.links.iter().map(|l| DhRow {
+            kind: l.kind,
+            a: l.a,
+            alpha: l.alpha,
+            d: l.d,
+            theta: l.theta,
+        })
+    }
+
+    /// The base transform (world ← frame 0).
+    pub fn base(&self) -> &Transform {
+        &self.base
+    }
+
+    /// The tool transform (flange ← tool tip), if it is not the identity.
+    pub fn tool(&self) -> Option<&Transform> {
+        self.tool.as_ref()
+    }
+
     /// World pose of the tool tip, `base · A_1 ⋯ A_n · tool`, for joint values `q`
-    /// (revolute values are multiplied by `angle_scale`, e.g. π/180 for degrees).
+    /// (revolute values are multiplied by `angle_scale`, e.g. π/180 for degrees),
+    /// on the [best kernel](Kernel::best) of this CPU.
     ///
     /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
-    /// Uses AVX2/FMA when the CPU has them.
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if super::sincos::simd_available() {
-                // SAFETY: the CPU supports avx2 and fma (checked just above).
-                return unsafe { self.forward_avx2(q, angle_scale) };
-            }
-        }
-        self.forward_impl::<false>(q, angle_scale)
+        self.forward_with(Kernel::best(), q, angle_scale)
     }
 
-    /// Portable path of [`Chain::forward`] (no SIMD dispatch, no FMA).
-    pub fn forward_portable(&self, q: &[f64], angle_scale: f64) -> Transform {
-        self.forward_impl::<false>(q, angle_scale)
+    /// [`Chain::forward`] on a given kernel (the portable one if the CPU lacks it).
+    pub fn forward_with(&self, kernel: Kernel, q: &[f64], angle_scale: f64) -> Transform {
+        match kernel.or_portable() {
+            Kernel::Portable => self.forward_impl::<false>(q, angle_scale),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+            Kernel::Avx2Fma => unsafe { self.forward_avx2(q, angle_scale) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Kernel::Avx2Fma => self.forward_impl::<false>(q, angle_scale),
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -325,45 +335,31 @@ impl Chain {
         (tool, frames)
     }
 
-    /// The plain reference product `base · A_1 ⋯ A_n · tool` built from
-    /// [`link_transform`] and generic matrix products (slow; for tests and verification).
-    pub fn forward_reference(&self, q: &[f64], angle_scale: f64) -> Transform {
-        let mut t = self.base;
-        let mut qi = q.iter();
-        for l in &self.links {
-            let qj = match l.kind {
-                JointKind::Fixed => 0.0,
-                JointKind::Revolute => qi.next().copied().unwrap_or(0.0) * angle_scale,
-                JointKind::Prismatic => qi.next().copied().unwrap_or(0.0),
-            };
-            t = t * link_transform(self.convention, l.kind, l.a, l.alpha, l.d, l.theta, qj);
-        }
-        match &self.tool {
-            Some(tool) => t * *tool,
-            None => t,
-        }
-    }
-
-    /// Tool poses for many configurations at once. `q` holds the configurations
-    /// back to back (`dof` values each; a trailing partial configuration is
-    /// ignored), and `out` receives one pose per configuration (up to its length).
-    /// Structure-of-arrays over groups of 8 poses, vectorised with AVX2/FMA when
-    /// the CPU has them. Allocates nothing.
+    /// Tool poses for many configurations at once, on the [best kernel](Kernel::best).
+    /// `q` holds the configurations back to back (`dof` values each; a trailing
+    /// partial configuration is ignored), and `out` receives one pose per
+    /// configuration (up to its length). Structure-of-arrays over groups of 8
+    /// poses. Unchecked like [`Chain::forward`]. Allocates nothing.
     pub fn forward_batch(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if super::sincos::simd_available() {
-                // SAFETY: the CPU supports avx2 and fma (checked just above).
-                unsafe { self.forward_batch_avx2(q, angle_scale, out) };
-                return;
-            }
-        }
-        self.forward_batch_generic::<false>(q, angle_scale, out)
+        self.forward_batch_with(Kernel::best(), q, angle_scale, out)
     }
 
-    /// Portable path of [`Chain::forward_batch`] (no SIMD dispatch).
-    pub fn forward_batch_portable(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
-        self.forward_batch_generic::<false>(q, angle_scale, out)
+    /// [`Chain::forward_batch`] on a given kernel (the portable one if the CPU lacks it).
+    pub fn forward_batch_with(
+        &self,
+        kernel: Kernel,
+        q: &[f64],
+        angle_scale: f64,
+        out: &mut [Transform],
+    ) {
+        match kernel.or_portable() {
+            Kernel::Portable => self.forward_batch_generic::<false>(q, angle_scale, out),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+            Kernel::Avx2Fma => unsafe { self.forward_batch_avx2(q, angle_scale, out) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Kernel::Avx2Fma => self.forward_batch_generic::<false>(q, angle_scale, out),
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -457,32 +453,8 @@ impl Chain {
                 }
             }
             match self.convention {
-                Convention::Standard => {
-                    for row in 0..3 {
-                        for k in 0..LANES {
-                            let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
-                            let x = madd::<FMA>(r0, ct[k], r1 * st[k]);
-                            let y = madd::<FMA>(r1, ct[k], -(r0 * st[k]));
-                            r[row][0][k] = x;
-                            r[row][1][k] = madd::<FMA>(y, l.ca, r2 * l.sa);
-                            r[row][2][k] = madd::<FMA>(r2, l.ca, -(y * l.sa));
-                            p[row][k] = madd::<FMA>(x, l.a, madd::<FMA>(r2, d[k], p[row][k]));
-                        }
-                    }
-                }
-                Convention::Modified => {
-                    for row in 0..3 {
-                        for k in 0..LANES {
-                            let (r0, r1, r2) = (r[row][0][k], r[row][1][k], r[row][2][k]);
-                            let u = madd::<FMA>(r1, l.ca, r2 * l.sa);
-                            let w = madd::<FMA>(r2, l.ca, -(r1 * l.sa));
-                            r[row][0][k] = madd::<FMA>(r0, ct[k], u * st[k]);
-                            r[row][1][k] = madd::<FMA>(u, ct[k], -(r0 * st[k]));
-                            r[row][2][k] = w;
-                            p[row][k] = madd::<FMA>(r0, l.a, madd::<FMA>(w, d[k], p[row][k]));
-                        }
-                    }
-                }
+                Convention::Standard => step_soa::<FMA, false>(&mut r, &mut p, l, &ct, &st, &d),
+                Convention::Modified => step_soa::<FMA, true>(&mut r, &mut p, l, &ct, &st, &d),
             }
         }
         for (k, o) in out.iter_mut().enumerate().take(LANES) {
@@ -526,15 +498,54 @@ fn from_cols(c: &[[f64; 4]; 4]) -> Transform {
     }
 }
 
-/// Multiplies the column-major transform `c` in place by the link matrix of `l`
-/// with the given `cos θ, sin θ, d`. The one DH step of the single-pose and
-/// frames paths (the batch path does the same in structure-of-arrays form):
+/// The one DH step: one row `[x0, x1, x2, p]` of `[R | p]` (world ← frame i-1)
+/// multiplied by the link matrix of `l` with the given `cos θ, sin θ, d`, giving
+/// the same row of world ← frame i. Every evaluator (single pose, frames,
+/// batch) is built from this function:
 ///
 /// ```text
 /// standard: A = [[ct, -st*ca,  st*sa, a*ct],     modified: A = [[   ct,    -st,   0,     a],
 ///                [st,  ct*ca, -ct*sa, a*st],                    [st*ca,  ct*ca, -sa, -sa*d],
 ///                [ 0,     sa,     ca,    d]]                    [st*sa,  ct*sa,  ca,  ca*d]]
 /// ```
+#[inline(always)]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one row of a 3×4 block and one DH row, all scalars in registers"
+)]
+fn dh_row<const FMA: bool, const MODIFIED: bool>(
+    l: &Link,
+    ct: f64,
+    st: f64,
+    d: f64,
+    x0: f64,
+    x1: f64,
+    x2: f64,
+    p: f64,
+) -> [f64; 4] {
+    if MODIFIED {
+        let u = madd::<FMA>(x1, l.ca, x2 * l.sa);
+        let w = madd::<FMA>(x2, l.ca, -(x1 * l.sa));
+        [
+            madd::<FMA>(x0, ct, u * st),
+            madd::<FMA>(u, ct, -(x0 * st)),
+            w,
+            madd::<FMA>(x0, l.a, madd::<FMA>(w, d, p)),
+        ]
+    } else {
+        let x = madd::<FMA>(x0, ct, x1 * st);
+        let y = madd::<FMA>(x1, ct, -(x0 * st));
+        [
+            x,
+            madd::<FMA>(y, l.ca, x2 * l.sa),
+            madd::<FMA>(x2, l.ca, -(y * l.sa)),
+            madd::<FMA>(x, l.a, madd::<FMA>(x2, d, p)),
+        ]
+    }
+}
+
+/// Multiplies the column-major transform `c` in place by the link matrix of `l`
+/// (the single-pose and frames paths): [`dh_row`] on each of the 4 lanes.
 #[inline(always)]
 fn apply_cols<const FMA: bool>(
     convention: Convention,
@@ -544,32 +555,58 @@ fn apply_cols<const FMA: bool>(
     st: f64,
     d: f64,
 ) {
-    let [c0, c1, c2, p] = *c;
-    let mut n0 = [0.0; 4];
-    let mut n1 = [0.0; 4];
-    let mut n2 = [0.0; 4];
-    let mut np = [0.0; 4];
     match convention {
-        Convention::Standard => {
-            for k in 0..4 {
-                let x = madd::<FMA>(c0[k], ct, c1[k] * st);
-                let y = madd::<FMA>(c1[k], ct, -(c0[k] * st));
-                n0[k] = x;
-                n1[k] = madd::<FMA>(y, l.ca, c2[k] * l.sa);
-                n2[k] = madd::<FMA>(c2[k], l.ca, -(y * l.sa));
-                np[k] = madd::<FMA>(x, l.a, madd::<FMA>(c2[k], d, p[k]));
-            }
-        }
-        Convention::Modified => {
-            for k in 0..4 {
-                let u = madd::<FMA>(c1[k], l.ca, c2[k] * l.sa);
-                let w = madd::<FMA>(c2[k], l.ca, -(c1[k] * l.sa));
-                n0[k] = madd::<FMA>(c0[k], ct, u * st);
-                n1[k] = madd::<FMA>(u, ct, -(c0[k] * st));
-                n2[k] = w;
-                np[k] = madd::<FMA>(c0[k], l.a, madd::<FMA>(w, d, p[k]));
-            }
+        Convention::Standard => apply_cols_as::<FMA, false>(c, l, ct, st, d),
+        Convention::Modified => apply_cols_as::<FMA, true>(c, l, ct, st, d),
+    }
+}
+
+#[inline(always)]
+fn apply_cols_as<const FMA: bool, const MODIFIED: bool>(
+    c: &mut [[f64; 4]; 4],
+    l: &Link,
+    ct: f64,
+    st: f64,
+    d: f64,
+) {
+    let [c0, c1, c2, p] = *c;
+    let mut n = [[0.0; 4]; 4];
+    for k in 0..4 {
+        let row = dh_row::<FMA, MODIFIED>(l, ct, st, d, c0[k], c1[k], c2[k], p[k]);
+        for (col, v) in n.iter_mut().zip(row) {
+            col[k] = v;
         }
     }
-    *c = [n0, n1, n2, np];
+    *c = n;
+}
+
+/// One DH step on eight poses in structure-of-arrays form (the batch path):
+/// [`dh_row`] on each row of each lane.
+#[inline(always)]
+fn step_soa<const FMA: bool, const MODIFIED: bool>(
+    r: &mut [[[f64; LANES]; 3]; 3],
+    p: &mut [[f64; LANES]; 3],
+    l: &Link,
+    ct: &[f64; LANES],
+    st: &[f64; LANES],
+    d: &[f64; LANES],
+) {
+    for row in 0..3 {
+        for k in 0..LANES {
+            let [x0, x1, x2, pk] = dh_row::<FMA, MODIFIED>(
+                l,
+                ct[k],
+                st[k],
+                d[k],
+                r[row][0][k],
+                r[row][1][k],
+                r[row][2][k],
+                p[row][k],
+            );
+            r[row][0][k] = x0;
+            r[row][1][k] = x1;
+            r[row][2][k] = x2;
+            p[row][k] = pk;
+        }
+    }
 }

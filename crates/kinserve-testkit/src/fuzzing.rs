@@ -14,18 +14,21 @@
 //!   built-in robots, either fail with a client error (4xx) or give finite,
 //!   rigid poses that serialise to JSON numbers (never `null`).
 //!
-//! Not part of the service API; public only so the fuzz crate can call it.
 
 use std::sync::OnceLock;
 
-use crate::api::rest::{FkBatchRequest, FkRequest, Problem, WsRequest};
-use crate::error::Error;
-use crate::kinematics::{JointKind, Transform};
-use crate::model::{
-    AngleUnit, FkOptions, MAX_MAGNITUDE, ModelLimits, Pose, RIGID_TOLERANCE, Robot, parse_json,
+use kinserve::api::pose::Pose;
+use kinserve::api::rest::{FkBatchRequest, FkRequest, Problem, WsRequest};
+use kinserve::error::Error;
+use kinserve::registry::{MemoryStore, Registry};
+use kinserve::service::{Configurations, Service, ServiceLimits};
+use kinserve_kinematics::{JointKind, Transform};
+use kinserve_model::{
+    AngleUnit, FkOptions, MAX_MAGNITUDE, ModelError, ModelLimits, RIGID_TOLERANCE, Robot,
+    parse_json,
 };
-use crate::registry::{MemoryStore, Registry};
-use crate::service::{Configurations, Service, ServiceLimits};
+
+use crate::reference::forward_reference;
 
 /// Relative tolerance between the fast (polynomial, SIMD) FK and the `std`
 /// per-frame FK: both are accurate to ~1e-15 per row, so this only trips on a
@@ -40,7 +43,7 @@ pub fn check_model(bytes: &[u8]) {
     let robot = match Robot::from_json(bytes, &limits) {
         Ok(r) => r,
         Err(e) => {
-            assert_client_error(&e, "model");
+            assert_client_error(&Error::from(e), "model");
             return;
         }
     };
@@ -65,7 +68,7 @@ pub fn check_model(bytes: &[u8]) {
     let configs = in_limit_configurations(&robot, &mut rng);
     let opts = FkOptions::default();
     for q in &configs {
-        let t = match robot.fk_checked(q, &opts) {
+        let t = match robot.fk(q, &opts) {
             Ok(t) => t,
             Err(e) => panic!("in-limit configuration {q:?} rejected: {e}"),
         };
@@ -77,6 +80,8 @@ pub fn check_model(bytes: &[u8]) {
             check_pose(f, "forward_frames frame", q);
         }
         check_agree(&t, &tool, scale, "fk_checked vs forward_frames", q);
+        let plain = forward_reference(robot.chain(), q, 1.0);
+        check_agree(&t, &plain, scale, "fast path vs reference product", q);
     }
 
     // The batch path (8-wide blocks plus a remainder) must match one by one.
@@ -108,7 +113,7 @@ pub fn check_model(bytes: &[u8]) {
                 _ => rng.any_finite(),
             })
             .collect();
-        match robot.fk_checked(&q, &free) {
+        match robot.fk(&q, &free) {
             Ok(t) => check_pose(&t, "fk_checked without limits", &q),
             Err(e) => panic!("finite configuration {q:?} rejected without limit checks: {e}"),
         }
@@ -116,7 +121,7 @@ pub fn check_model(bytes: &[u8]) {
             angle_unit: AngleUnit::Deg,
             check_limits: false,
         };
-        match robot.fk_frames_checked(&q, &deg) {
+        match robot.fk_frames(&q, &deg) {
             Ok((t, frames)) => {
                 check_pose(&t, "fk_frames_checked deg", &q);
                 frames
@@ -130,10 +135,10 @@ pub fn check_model(bytes: &[u8]) {
     // Bad vectors are client errors, never panics.
     let mut bad = configs[0].clone();
     bad.push(0.0);
-    expect_invalid(robot.fk_checked(&bad, &opts), "one value too many");
+    expect_invalid(robot.fk(&bad, &opts), "one value too many");
     let mut bad = configs[0].clone();
     bad[rng.below(dof)] = f64::NAN;
-    expect_invalid(robot.fk_checked(&bad, &free), "NaN joint value");
+    expect_invalid(robot.fk(&bad, &free), "NaN joint value");
     if let Some(i) = robot
         .joints()
         .iter()
@@ -141,10 +146,7 @@ pub fn check_model(bytes: &[u8]) {
     {
         let mut bad = configs[0].clone();
         bad[i] = MAX_MAGNITUDE * 2.0;
-        expect_invalid(
-            robot.fk_checked(&bad, &free),
-            "prismatic value over the bound",
-        );
+        expect_invalid(robot.fk(&bad, &free), "prismatic value over the bound");
     }
 }
 
@@ -159,7 +161,7 @@ pub fn check_fk_request(bytes: &[u8]) {
                 evaluate_one(service, robot, &req.joints, &req.options(), req.frames);
             }
         }
-        Err(e) => assert_client_error(&e, "FkRequest"),
+        Err(e) => assert_client_error(&Error::from(e), "FkRequest"),
     }
     match parse_json::<FkBatchRequest>(bytes) {
         Ok(req) => {
@@ -167,7 +169,7 @@ pub fn check_fk_request(bytes: &[u8]) {
                 evaluate_batch(service, robot, &req.configurations, &req.options());
             }
         }
-        Err(e) => assert_client_error(&e, "FkBatchRequest"),
+        Err(e) => assert_client_error(&Error::from(e), "FkBatchRequest"),
     }
     match parse_json::<WsRequest>(bytes) {
         Ok(req) => {
@@ -179,7 +181,7 @@ pub fn check_fk_request(bytes: &[u8]) {
                 evaluate_one(service, robot, &req.joints, &opts, req.frames);
             }
         }
-        Err(e) => assert_client_error(&e, "WsRequest"),
+        Err(e) => assert_client_error(&Error::from(e), "WsRequest"),
     }
 }
 
@@ -229,7 +231,7 @@ fn evaluate_batch(service: &Service, robot: &Robot, configs: &Configurations, op
         check_serialises(t, q);
         if opts.angle_unit == AngleUnit::Rad {
             let one = robot
-                .fk_checked(q, opts)
+                .fk(q, opts)
                 .unwrap_or_else(|e| panic!("batch accepted {q:?} but fk refused it: {e}"));
             check_agree(t, &one, reach_with(robot, q), "batch vs single", q);
         }
@@ -255,10 +257,10 @@ fn robots() -> &'static [Robot] {
     static ROBOTS: OnceLock<Vec<Robot>> = OnceLock::new();
     ROBOTS.get_or_init(|| {
         let files: [&[u8]; 4] = [
-            include_bytes!("../robots/puma560.json"),
-            include_bytes!("../robots/stanford.json"),
-            include_bytes!("../robots/scara_4dof.json"),
-            include_bytes!("../robots/cylindrical_3dof.json"),
+            include_bytes!("../../../robots/puma560.json"),
+            include_bytes!("../../../robots/stanford.json"),
+            include_bytes!("../../../robots/scara_4dof.json"),
+            include_bytes!("../../../robots/cylindrical_3dof.json"),
         ];
         let slides = br#"{"name": "slides", "convention": "standard", "links": [
             {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0, "theta": 0},
@@ -329,11 +331,11 @@ fn assert_client_error(e: &Error, what: &str) {
     );
 }
 
-fn expect_invalid(r: crate::Result<Transform>, what: &str) {
+fn expect_invalid(r: Result<Transform, ModelError>, what: &str) {
     match r {
         Ok(t) => panic!("{what}: accepted, giving {t:?}"),
         Err(e) => assert!(
-            matches!(e, Error::Invalid { .. }),
+            matches!(e, ModelError::Invalid { .. }),
             "{what}: expected an invalid-input error, got {e}"
         ),
     }
@@ -414,7 +416,7 @@ fn reach_with(robot: &Robot, q: &[f64]) -> f64 {
 /// 1 + every constant length of the model (`a`, `d`, base and tool translations).
 fn fixed_reach(robot: &Robot) -> f64 {
     let spec = robot.spec();
-    let t = |s: &Option<crate::model::TransformSpec>| {
+    let t = |s: &Option<kinserve_model::TransformSpec>| {
         s.as_ref().map_or(0.0, |s| {
             let m: f64 = s
                 .matrix

@@ -1,10 +1,12 @@
-//! The pose representation returned to clients.
+//! The pose representation returned to clients over REST, WebSocket and the
+//! CLI (gRPC has its own messages in `grpc::convert`). Depends on the model
+//! and kinematics crates only.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::LengthUnit;
 use crate::kinematics::Transform;
+use crate::model::LengthUnit;
 
 /// Unit quaternion `w + xi + yj + zk` with `w ≥ 0`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]

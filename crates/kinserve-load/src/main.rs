@@ -1,7 +1,7 @@
-//! `kinserve-load`: load generator for kinserve (see `kinserve::load`).
+//! `kinserve-load`: load generator for kinserve (the library of this crate).
 
 use clap::Parser;
-use kinserve::load::{LoadArgs, Report, run};
+use kinserve_load::{LoadArgs, Report, run};
 
 #[tokio::main]
 async fn main() -> std::process::ExitCode {

@@ -12,9 +12,9 @@ use clap::{Parser, ValueEnum};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
-use crate::config::parse_duration;
-use crate::kinematics::{JointKind, Transform};
-use crate::model::{ModelLimits, Robot, RobotSpec};
+use kinserve::config::parse_duration;
+use kinserve_kinematics::{JointKind, Transform};
+use kinserve_model::{ModelLimits, Robot, RobotSpec};
 
 /// What to load.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
@@ -313,7 +313,7 @@ fn verify_pose(robot: &Robot, q: &[f64], matrix16: &[f64]) -> bool {
     if matrix16.len() != 16 {
         return false;
     }
-    let expect: Transform = robot.fk_unchecked(q);
+    let expect: Transform = robot.chain().forward(q, 1.0);
     let m = expect.matrix();
     let scale = 1.0
         + expect

@@ -1,9 +1,8 @@
 //! The robot model schema as clients write it (robot files, REST bodies, and
-//! field by field the gRPC messages). Plain data: see [`super::Robot`] for the
+//! field by field the gRPC messages). Plain data: see [`crate::Robot`] for the
 //! validated form the math accepts.
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 /// Implements `Serialize` and `Deserialize` for a struct derived with
 /// `#[serde(remote = "Self")]` so that it is read only from a JSON object:
@@ -40,7 +39,8 @@ macro_rules! object_only {
 }
 
 /// DH convention of a table.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum ConventionSpec {
     /// Standard (distal): `A_i = Rz(θ_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`.
@@ -50,7 +50,8 @@ pub enum ConventionSpec {
 }
 
 /// Kind of joint of a DH row.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum JointType {
     /// The joint value is added to `theta`.
@@ -63,7 +64,8 @@ pub enum JointType {
 
 /// Unit of angles: `alpha`, `theta`, revolute limits, base/tool `rpy` in a model;
 /// joint values in an FK request.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum AngleUnit {
     /// Radians (the default).
@@ -93,7 +95,8 @@ impl AngleUnit {
 
 /// Unit of lengths: `a`, `d`, prismatic limits and joint values, base/tool
 /// translations, and every position FK returns for the robot.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum LengthUnit {
     /// Metres (the default).
@@ -114,26 +117,27 @@ impl LengthUnit {
 }
 
 /// One row of the DH table.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 pub struct LinkSpec {
     /// Optional joint/link name (at most 64 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(max_length = 64)]
+    #[cfg_attr(feature = "openapi", schema(max_length = 64))]
     pub name: Option<String>,
     /// Joint kind.
     pub joint: JointType,
     /// Link length `a` (modified: `a_{i-1}`), model length unit; at most 1e9 in magnitude.
-    #[schema(minimum = -1e9, maximum = 1e9)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1e9, maximum = 1e9))]
     pub a: f64,
     /// Link twist `α` (modified: `α_{i-1}`), model angle unit; at most 1e9 in magnitude.
-    #[schema(minimum = -1e9, maximum = 1e9)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1e9, maximum = 1e9))]
     pub alpha: f64,
     /// Link offset `d`; for a prismatic joint the value at q = 0. Model length unit; at most 1e9 in magnitude.
-    #[schema(minimum = -1e9, maximum = 1e9)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1e9, maximum = 1e9))]
     pub d: f64,
     /// Joint angle `θ`; for a revolute joint the value at q = 0. Model angle unit; at most 1e9 in magnitude.
-    #[schema(minimum = -1e9, maximum = 1e9)]
+    #[cfg_attr(feature = "openapi", schema(minimum = -1e9, maximum = 1e9))]
     pub theta: f64,
     /// Joint limits `[lo, hi]` on q (not on θ or d): angle unit for revolute,
     /// length unit for prismatic joints (within ±1e9). Not allowed on fixed rows.
@@ -142,7 +146,8 @@ pub struct LinkSpec {
 }
 
 /// A unit quaternion `w + xi + yj + zk` (normalised on input; must not be zero).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 pub struct QuaternionSpec {
     /// Scalar part.
@@ -157,7 +162,8 @@ pub struct QuaternionSpec {
 
 /// A fixed rigid transform: either `translation` with at most one of `rpy` /
 /// `quaternion`, or `matrix` alone.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 pub struct TransformSpec {
     /// `[x, y, z]` in the model length unit (default zero), each at most 1e9 in magnitude.
@@ -177,9 +183,10 @@ pub struct TransformSpec {
 }
 
 /// A serial robot as registered: a named DH table with units and optional base and tool.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
-#[schema(example = json!({
+#[cfg_attr(feature = "openapi", schema(example = json!({
     "name": "planar2",
     "convention": "standard",
     "angle_unit": "deg",
@@ -188,22 +195,25 @@ pub struct TransformSpec {
         {"joint": "revolute", "a": 0.5, "alpha": 0, "d": 0, "theta": 0, "limits": [-170, 170]},
         {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}
     ]
-}))]
+})))]
 pub struct RobotSpec {
     /// 1–64 characters of `[a-z0-9_-]`, starting with a letter or digit.
-    #[schema(
-        pattern = "^[a-z0-9][a-z0-9_-]{0,63}$",
-        min_length = 1,
-        max_length = 64
+    #[cfg_attr(
+        feature = "openapi",
+        schema(
+            pattern = "^[a-z0-9][a-z0-9_-]{0,63}$",
+            min_length = 1,
+            max_length = 64
+        )
     )]
     pub name: String,
     /// Free text (at most 4096 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(max_length = 4096)]
+    #[cfg_attr(feature = "openapi", schema(max_length = 4096))]
     pub description: Option<String>,
     /// Where the table comes from (at most 4096 characters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(max_length = 4096)]
+    #[cfg_attr(feature = "openapi", schema(max_length = 4096))]
     pub source: Option<String>,
     /// DH convention of `links`.
     pub convention: ConventionSpec,
@@ -220,7 +230,7 @@ pub struct RobotSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool: Option<TransformSpec>,
     /// The DH table, base to flange (at least one row, at least one of them movable).
-    #[schema(min_items = 1)]
+    #[cfg_attr(feature = "openapi", schema(min_items = 1))]
     pub links: Vec<LinkSpec>,
 }
 

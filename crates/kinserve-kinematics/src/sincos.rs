@@ -11,6 +11,8 @@
 // The constants below are published ones, kept digit for digit as printed (fdlibm, Cephes).
 #![allow(clippy::excessive_precision)]
 
+use crate::kernel::Kernel;
+
 /// Inputs with magnitude above this (rad) use `f64::sin_cos`.
 pub const POLY_LIMIT: f64 = 1.0e5;
 
@@ -118,33 +120,20 @@ fn sincos_slice_avx2(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     sincos_slice_generic::<true>(x, sin, cos)
 }
 
-/// Whether the AVX2+FMA kernels are used on this CPU (detected once, at run time).
-pub fn simd_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// Fills `sin[i], cos[i]` with the sine and cosine of `x[i]` (rad) for every `i`
-/// up to the shortest of the three slices. Uses AVX2/FMA when available.
+/// up to the shortest of the three slices, on the [best kernel](Kernel::best).
 pub fn sincos_slice(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if simd_available() {
-            // SAFETY: the CPU supports avx2 and fma (checked just above).
-            unsafe { sincos_slice_avx2(x, sin, cos) };
-            return;
-        }
-    }
-    sincos_slice_generic::<false>(x, sin, cos)
+    sincos_slice_with(Kernel::best(), x, sin, cos)
 }
 
-/// Portable path of [`sincos_slice`], without any SIMD dispatch (for tests and comparison).
-pub fn sincos_slice_portable(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
-    sincos_slice_generic::<false>(x, sin, cos)
+/// [`sincos_slice`] on a given kernel (the portable one if the CPU lacks it).
+pub fn sincos_slice_with(kernel: Kernel, x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
+    match kernel.or_portable() {
+        Kernel::Portable => sincos_slice_generic::<false>(x, sin, cos),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        Kernel::Avx2Fma => unsafe { sincos_slice_avx2(x, sin, cos) },
+        #[cfg(not(target_arch = "x86_64"))]
+        Kernel::Avx2Fma => sincos_slice_generic::<false>(x, sin, cos),
+    }
 }

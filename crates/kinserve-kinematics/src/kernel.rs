@@ -1,0 +1,63 @@
+//! Which compiled kernel runs the math: detected once per call site at run
+//! time (std caches the CPUID answer), with a portable path everywhere.
+//! Depends on nothing else in the crate.
+
+/// Which compiled kernel evaluates a chain. [`Kernel::best`] is what the
+/// evaluators without `_with` use; every kernel computes the same product
+/// (within 1e-12, tested) and any kernel may be asked for explicitly, e.g. to
+/// compare or benchmark them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kernel {
+    /// Plain Rust, no target features beyond the baseline (SSE2 on x86_64), no FMA.
+    Portable,
+    /// AVX2 with fused multiply-add (x86_64).
+    Avx2Fma,
+}
+
+impl Kernel {
+    /// The widest kernel this CPU supports (detected at run time, cached by std).
+    pub fn best() -> Kernel {
+        if Kernel::Avx2Fma.is_supported() {
+            Kernel::Avx2Fma
+        } else {
+            Kernel::Portable
+        }
+    }
+
+    /// Whether this CPU can run the kernel.
+    pub fn is_supported(self) -> bool {
+        match self {
+            Kernel::Portable => true,
+            Kernel::Avx2Fma => avx2_fma_detected(),
+        }
+    }
+
+    /// Short name (`portable`, `avx2+fma`), as reported by benchmarks.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Portable => "portable",
+            Kernel::Avx2Fma => "avx2+fma",
+        }
+    }
+
+    /// `self` if the CPU supports it, else [`Kernel::Portable`].
+    pub(crate) fn or_portable(self) -> Kernel {
+        if self.is_supported() {
+            self
+        } else {
+            Kernel::Portable
+        }
+    }
+}
+
+/// Whether this CPU has AVX2 and FMA.
+fn avx2_fma_detected() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}

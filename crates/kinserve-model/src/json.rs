@@ -1,0 +1,95 @@
+//! JSON in: parsing with field paths ([`parse_json`]) and robot files
+//! ([`load_robot_file`]). Depends on the error and robot modules only.
+
+use std::path::Path;
+
+use serde::de::DeserializeOwned;
+
+use crate::error::{FieldViolation, ModelError, Result};
+use crate::robot::{ModelLimits, Robot};
+use crate::spec::RobotSpec;
+
+/// Parses JSON into `T`, turning serde errors into [`ModelError`]s that name the field.
+/// Syntax errors, wrong types and bad values are [`ModelError::Malformed`]; unknown
+/// and missing fields (well-formed JSON breaking the schema) are [`ModelError::Invalid`].
+pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
+    let de = &mut serde_json::Deserializer::from_slice(bytes);
+    let value: T = serde_path_to_error::deserialize(&mut *de).map_err(json_error)?;
+    de.end()
+        .map_err(|e| ModelError::malformed_field("", format!("{e}")))?;
+    Ok(value)
+}
+
+/// Longest field path reported for a JSON error (characters); longer ones are cut.
+const MAX_PATH_CHARS: usize = 200;
+/// Longest JSON error message reported (characters); longer ones are cut.
+const MAX_MESSAGE_CHARS: usize = 300;
+
+/// `s` cut to `max` characters, with `…` when something was cut (client text
+/// echoed in an error stays small however large the input was).
+fn clip(s: String, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        None => s,
+        Some((i, _)) => {
+            let mut cut = s;
+            cut.truncate(i);
+            cut.push('…');
+            cut
+        }
+    }
+}
+
+fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> ModelError {
+    let mut path = e.path().to_string();
+    // serde_path_to_error writes `?` for a map key it could not read (e.g. a
+    // single-quoted key) and `.` for the document itself: neither is a field.
+    while path == "?" || path.ends_with(".?") {
+        path.truncate(path.len() - 1);
+        if path.ends_with('.') {
+            path.pop();
+        }
+    }
+    if path == "." {
+        path.clear();
+    }
+    let inner = e.into_inner();
+    let mut message = inner.to_string();
+    // Strip serde_json's " at line L column C": the path already says where.
+    if let Some(i) = message.find(" at line ") {
+        message.truncate(i);
+    }
+    let structural = message.starts_with("unknown field") || message.starts_with("missing field");
+    let names_a_field = structural || message.starts_with("duplicate field");
+    if names_a_field && let Some(field) = message.split('`').nth(1) {
+        let already = path.rsplit('.').next() == Some(field);
+        if !already {
+            path = if path.is_empty() {
+                field.to_string()
+            } else {
+                format!("{path}.{field}")
+            };
+        }
+    }
+    let v = FieldViolation::new(clip(path, MAX_PATH_CHARS), clip(message, MAX_MESSAGE_CHARS));
+    match inner.classify() {
+        serde_json::error::Category::Data if structural => ModelError::invalid(vec![v]),
+        _ => ModelError::Malformed {
+            detail: v.to_string(),
+            violations: vec![v],
+        },
+    }
+}
+
+/// Reads and validates a robot file (JSON, the schema of [`RobotSpec`]) with default limits.
+pub fn load_robot_file(path: &Path) -> Result<Robot> {
+    load_robot_file_with(path, &ModelLimits::default())
+}
+
+/// Reads and validates a robot file with the given limits: the one loader of
+/// robot files (the CLI, the registry's built-ins and the tests all use it).
+pub fn load_robot_file_with(path: &Path, limits: &ModelLimits) -> Result<Robot> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| ModelError::malformed(format!("cannot read {}: {e}", path.display())))?;
+    let spec: RobotSpec = parse_json(&bytes)?;
+    Robot::from_spec(spec, limits)
+}

@@ -1,0 +1,67 @@
+//! kinserve-model: robot models as clients write them and as the math accepts
+//! them.
+//!
+//! It owns the schema ([`RobotSpec`], read from robot files, REST bodies and,
+//! field by field, gRPC messages), its validation into a [`Robot`] with every
+//! broken rule reported under its field path (`links[3].alpha`), units, base
+//! and tool, and the validated joint vector ([`JointVector`], [`JointBatch`]):
+//! the only input a robot's forward kinematics accepts, so "checked" is a
+//! type, not a naming convention.
+//!
+//! Units: a model keeps its own length unit (m or mm) and declares the angle
+//! unit of its table (rad or deg); internally angles are rad.
+//!
+//! Depends on `kinserve-kinematics` (the math) and serde. Must not depend on:
+//! tokio, axum, tonic, prost, hyper, tower, reqwest — nor on the server crate.
+//! With the `openapi` feature the schema types also derive `utoipa::ToSchema`.
+
+mod base_tool;
+mod error;
+mod joints;
+mod json;
+mod robot;
+mod spec;
+
+pub use error::{FieldViolation, ModelError, Result, summary};
+pub use joints::{JointBatch, JointVector};
+pub use json::{load_robot_file, load_robot_file_with, parse_json};
+pub use robot::{FkOptions, Joint, ModelLimits, Robot};
+pub use spec::{
+    AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
+    TransformSpec,
+};
+
+/// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
+pub const RIGID_TOLERANCE: f64 = 1e-6;
+/// Longest `description` / `source` accepted (characters).
+pub const MAX_TEXT_CHARS: usize = 4096;
+/// Longest link name accepted (characters).
+pub const MAX_LINK_NAME_CHARS: usize = 64;
+/// Largest magnitude accepted for a model's DH parameters (`a`, `d`, `alpha`,
+/// `theta`), base/tool translations and prismatic limits, and for prismatic
+/// joint values in FK requests: 1e9 in the model's own units (m or mm, rad or
+/// deg). With at most a few hundred rows every pose then stays many orders of
+/// magnitude below `f64::MAX`, so FK never overflows to infinity or NaN.
+pub const MAX_MAGNITUDE: f64 = 1e9;
+
+/// Checks a robot name: 1–64 characters of `[a-z0-9_-]`, first a letter or digit.
+pub fn validate_name(name: &str) -> std::result::Result<(), String> {
+    if name.is_empty() {
+        return Err("must not be empty".into());
+    }
+    if name.len() > 64 {
+        return Err(format!(
+            "must be at most 64 characters, got {}",
+            name.chars().count()
+        ));
+    }
+    let ok_char = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_' || c == '-';
+    if !name.chars().all(ok_char) {
+        return Err("may contain only lowercase letters a-z, digits, '_' and '-'".into());
+    }
+    let first = name.as_bytes()[0];
+    if !(first.is_ascii_lowercase() || first.is_ascii_digit()) {
+        return Err("must start with a lowercase letter or a digit".into());
+    }
+    Ok(())
+}

@@ -1,0 +1,404 @@
+//! The validated robot: [`Robot::from_spec`] checks a [`RobotSpec`] rule by
+//! rule and compiles it into a kinematic chain; [`Robot::check_joints`] turns
+//! a joint vector into the [`JointVector`] its FK accepts.
+
+use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+
+use crate::base_tool::{check_bounded, transform_from_spec};
+use crate::error::{FieldViolation, ModelError, Result};
+use crate::joints::{JointBatch, JointVector};
+use crate::spec::{AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, RobotSpec};
+use crate::{MAX_LINK_NAME_CHARS, MAX_MAGNITUDE, MAX_TEXT_CHARS, validate_name};
+
+/// Limits on model size, configurable at start-up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelLimits {
+    /// Most movable joints a model may have (default 64).
+    pub max_joints: usize,
+    /// Most DH rows (movable and fixed) a model may have (default 256).
+    pub max_links: usize,
+}
+
+impl ModelLimits {
+    /// Default of [`ModelLimits::max_joints`]. The evaluators accept chains of
+    /// any length; this bounds what a client may register.
+    pub const DEFAULT_MAX_JOINTS: usize = 64;
+    /// Default of [`ModelLimits::max_links`].
+    pub const DEFAULT_MAX_LINKS: usize = 256;
+}
+
+impl Default for ModelLimits {
+    fn default() -> Self {
+        Self {
+            max_joints: Self::DEFAULT_MAX_JOINTS,
+            max_links: Self::DEFAULT_MAX_LINKS,
+        }
+    }
+}
+
+/// One movable joint of a validated robot.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// Name from the table, or `joint{i}` (1-based) when none was given.
+    pub name: String,
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Limits on q in internal units (rad for revolute, model length unit for prismatic).
+    pub limits: Option<(f64, f64)>,
+}
+
+/// Options of an FK evaluation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FkOptions {
+    /// Unit of revolute joint values in the request (default rad).
+    pub angle_unit: AngleUnit,
+    /// Whether values outside the joint limits are an error (default true).
+    pub check_limits: bool,
+}
+
+impl FkOptions {
+    /// Options from a request's optional fields; absent ones take their
+    /// defaults (rad, limits checked). The one place every front door builds them.
+    pub fn new(angle_unit: Option<AngleUnit>, check_limits: Option<bool>) -> FkOptions {
+        FkOptions {
+            angle_unit: angle_unit.unwrap_or_default(),
+            check_limits: check_limits.unwrap_or(true),
+        }
+    }
+}
+
+impl Default for FkOptions {
+    fn default() -> Self {
+        Self {
+            angle_unit: AngleUnit::Rad,
+            check_limits: true,
+        }
+    }
+}
+
+/// A validated robot: the spec as registered plus its compiled chain.
+/// Construct it only through [`Robot::from_spec`] (or the parsing helpers).
+#[derive(Clone, Debug)]
+pub struct Robot {
+    spec: RobotSpec,
+    chain: Chain,
+    joints: Vec<Joint>,
+}
+
+impl Robot {
+    /// Validates `spec` and compiles it. Every broken rule is reported, each
+    /// naming its field (`links[3].alpha`).
+    pub fn from_spec(spec: RobotSpec, limits: &ModelLimits) -> Result<Robot> {
+        let mut v = Vec::new();
+        check_header(&spec, &mut v);
+        check_size(&spec, limits, &mut v)?;
+        let to_rad = spec.angle_unit.to_rad();
+        let mut rows = Vec::with_capacity(spec.links.len());
+        let mut joints = Vec::new();
+        for (i, l) in spec.links.iter().enumerate() {
+            let (row, joint) = compile_row(i, l, to_rad, joints.len(), &mut v);
+            rows.push(row);
+            joints.extend(joint);
+        }
+        let base = spec
+            .base
+            .as_ref()
+            .map(|t| transform_from_spec(t, "base", to_rad, &mut v))
+            .unwrap_or(Transform::IDENTITY);
+        let tool = spec
+            .tool
+            .as_ref()
+            .map(|t| transform_from_spec(t, "tool", to_rad, &mut v));
+        if !v.is_empty() {
+            return Err(ModelError::invalid(v));
+        }
+        let convention = match spec.convention {
+            ConventionSpec::Standard => Convention::Standard,
+            ConventionSpec::Modified => Convention::Modified,
+        };
+        let chain = Chain::new(convention, &rows, base, tool);
+        Ok(Robot {
+            spec,
+            chain,
+            joints,
+        })
+    }
+
+    /// Parses a JSON model and validates it.
+    pub fn from_json(bytes: &[u8], limits: &ModelLimits) -> Result<Robot> {
+        let spec: RobotSpec = crate::parse_json(bytes)?;
+        Robot::from_spec(spec, limits)
+    }
+
+    /// The robot's name.
+    pub fn name(&self) -> &str {
+        &self.spec.name
+    }
+
+    /// Number of movable joints (length of a joint vector).
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// The model exactly as registered.
+    pub fn spec(&self) -> &RobotSpec {
+        &self.spec
+    }
+
+    /// The compiled chain. Its evaluators are unchecked (the math layer);
+    /// go through [`Robot::check_joints`] for anything a client sent.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
+    /// Movable joints in table order.
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+
+    /// Length unit of this robot's positions.
+    pub fn length_unit(&self) -> LengthUnit {
+        self.spec.length_unit
+    }
+
+    /// Checks a joint vector — count, finiteness, prismatic values within
+    /// ±[`MAX_MAGNITUDE`] and (if asked) limits — and returns it as the
+    /// validated [`JointVector`] that FK accepts. Field paths are `joints[i]`.
+    pub fn check_joints<'a>(&'a self, q: &'a [f64], opts: &FkOptions) -> Result<JointVector<'a>> {
+        self.check_joints_at(q, opts, || "joints".to_string())
+    }
+
+    /// Like [`Robot::check_joints`], with the vector's field path given lazily
+    /// (e.g. `configurations[17]`, giving `configurations[17][2]`).
+    pub fn check_joints_at<'a>(
+        &'a self,
+        q: &'a [f64],
+        opts: &FkOptions,
+        field: impl Fn() -> String,
+    ) -> Result<JointVector<'a>> {
+        if q.len() != self.joints.len() {
+            return Err(ModelError::invalid_field(
+                field(),
+                format!(
+                    "robot '{}' has {} movable joints, got {} values",
+                    self.name(),
+                    self.joints.len(),
+                    q.len()
+                ),
+            ));
+        }
+        for (i, (x, j)) in q.iter().zip(&self.joints).enumerate() {
+            if let Some(message) = self.check_value(*x, j, opts) {
+                return Err(ModelError::invalid_field(
+                    format!("{}[{i}]", field()),
+                    message,
+                ));
+            }
+        }
+        Ok(JointVector::new(self, q, opts.angle_unit.to_rad()))
+    }
+
+    /// What is wrong with value `x` of joint `j`, if anything.
+    fn check_value(&self, x: f64, j: &Joint, opts: &FkOptions) -> Option<String> {
+        if !x.is_finite() {
+            return Some("must be a finite number".into());
+        }
+        if j.kind == JointKind::Prismatic && x.abs() > MAX_MAGNITUDE {
+            let unit = self.spec.length_unit.as_str();
+            return Some(format!(
+                "{x} {unit} is beyond ±{MAX_MAGNITUDE:e} {unit}, the largest prismatic joint value accepted"
+            ));
+        }
+        let (lo, hi) = j.limits.filter(|_| opts.check_limits)?;
+        let scale = opts.angle_unit.to_rad();
+        let internal = if j.kind == JointKind::Revolute {
+            x * scale
+        } else {
+            x
+        };
+        if internal >= lo && internal <= hi {
+            return None;
+        }
+        let (unit, k) = match j.kind {
+            JointKind::Revolute => (opts.angle_unit.as_str(), 1.0 / scale),
+            _ => (self.spec.length_unit.as_str(), 1.0),
+        };
+        Some(format!(
+            "{x} {unit} is outside the limits [{}, {}] {unit} of joint '{}'",
+            lo * k,
+            hi * k,
+            j.name
+        ))
+    }
+
+    /// Checks many configurations stored back to back (`lens[i]` values for
+    /// configuration `i`); the first bad one fails the whole batch, naming it
+    /// (`configurations[17][2]`).
+    pub fn check_batch<'a>(
+        &'a self,
+        values: &'a [f64],
+        lens: &[u32],
+        opts: &FkOptions,
+    ) -> Result<JointBatch<'a>> {
+        let mut offset = 0usize;
+        for (i, &len) in lens.iter().enumerate() {
+            let len = len as usize;
+            let q = values.get(offset..offset + len).unwrap_or(&[]);
+            self.check_joints_at(q, opts, || format!("configurations[{i}]"))?;
+            offset += len;
+        }
+        Ok(JointBatch::new(
+            self,
+            &values[..offset.min(values.len())],
+            lens.len(),
+            opts.angle_unit.to_rad(),
+        ))
+    }
+
+    /// Checked FK: validates `q` (see [`Robot::check_joints`]) and returns the tool pose.
+    pub fn fk(&self, q: &[f64], opts: &FkOptions) -> Result<Transform> {
+        Ok(self.check_joints(q, opts)?.fk())
+    }
+
+    /// Checked FK with every frame (see [`JointVector::fk_frames`]).
+    pub fn fk_frames(&self, q: &[f64], opts: &FkOptions) -> Result<(Transform, Vec<Transform>)> {
+        Ok(self.check_joints(q, opts)?.fk_frames())
+    }
+}
+
+/// Name, description and source.
+fn check_header(spec: &RobotSpec, v: &mut Vec<FieldViolation>) {
+    if let Err(m) = validate_name(&spec.name) {
+        v.push(FieldViolation::new("name", m));
+    }
+    for (field, text) in [("description", &spec.description), ("source", &spec.source)] {
+        if let Some(t) = text
+            && t.chars().count() > MAX_TEXT_CHARS
+        {
+            v.push(FieldViolation::new(
+                field,
+                format!("must be at most {MAX_TEXT_CHARS} characters"),
+            ));
+        }
+    }
+}
+
+/// Row and joint counts; a table over the row limit is refused before its rows are walked.
+fn check_size(spec: &RobotSpec, limits: &ModelLimits, v: &mut Vec<FieldViolation>) -> Result<()> {
+    let n_links = spec.links.len();
+    if n_links == 0 {
+        v.push(FieldViolation::new("links", "must hold at least one row"));
+    }
+    if n_links > limits.max_links {
+        v.push(FieldViolation::new(
+            "links",
+            format!(
+                "at most {} rows are allowed, got {n_links}",
+                limits.max_links
+            ),
+        ));
+        return Err(ModelError::invalid(std::mem::take(v)));
+    }
+    let movable = spec
+        .links
+        .iter()
+        .filter(|l| l.joint != JointType::Fixed)
+        .count();
+    if n_links > 0 && movable == 0 {
+        v.push(FieldViolation::new(
+            "links",
+            "needs at least one revolute or prismatic joint",
+        ));
+    }
+    if movable > limits.max_joints {
+        v.push(FieldViolation::new(
+            "links",
+            format!(
+                "at most {} movable joints are allowed, got {movable}",
+                limits.max_joints
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks row `i` and converts it to internal units; the joint, if the row is
+/// movable (`index` joints came before it).
+fn compile_row(
+    i: usize,
+    l: &LinkSpec,
+    to_rad: f64,
+    index: usize,
+    v: &mut Vec<FieldViolation>,
+) -> (DhRow, Option<Joint>) {
+    let f = |name: &str| format!("links[{i}].{name}");
+    for (name, x) in [
+        ("a", l.a),
+        ("alpha", l.alpha),
+        ("d", l.d),
+        ("theta", l.theta),
+    ] {
+        check_bounded(v, || f(name), x);
+    }
+    if let Some(name) = &l.name
+        && name.chars().count() > MAX_LINK_NAME_CHARS
+    {
+        v.push(FieldViolation::new(
+            f("name"),
+            format!("must be at most {MAX_LINK_NAME_CHARS} characters"),
+        ));
+    }
+    let kind = match l.joint {
+        JointType::Revolute => JointKind::Revolute,
+        JointType::Prismatic => JointKind::Prismatic,
+        JointType::Fixed => JointKind::Fixed,
+    };
+    let scale = if kind == JointKind::Revolute {
+        to_rad
+    } else {
+        1.0
+    };
+    let limits = l
+        .limits
+        .and_then(|lim| check_limits(lim, kind, scale, &f("limits"), v));
+    let joint = (kind != JointKind::Fixed).then(|| Joint {
+        name: l
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("joint{}", index + 1)),
+        kind,
+        limits,
+    });
+    let row = DhRow {
+        kind,
+        a: l.a,
+        alpha: l.alpha * to_rad,
+        d: l.d,
+        theta: l.theta * to_rad,
+    };
+    (row, joint)
+}
+
+/// Validates a row's `[lo, hi]` limits; in internal units if they hold.
+fn check_limits(
+    [lo, hi]: [f64; 2],
+    kind: JointKind,
+    scale: f64,
+    field: &str,
+    v: &mut Vec<FieldViolation>,
+) -> Option<(f64, f64)> {
+    let message = if kind == JointKind::Fixed {
+        "a fixed row has no joint variable to limit".to_string()
+    } else if !lo.is_finite() || !hi.is_finite() {
+        "limits must be finite numbers".to_string()
+    } else if lo > hi {
+        format!("lower limit {lo} is above upper limit {hi}")
+    } else if kind == JointKind::Prismatic && (lo.abs() > MAX_MAGNITUDE || hi.abs() > MAX_MAGNITUDE)
+    {
+        format!("prismatic limits must be within ±{MAX_MAGNITUDE:e} (model length unit)")
+    } else {
+        return Some((lo * scale, hi * scale));
+    };
+    v.push(FieldViolation::new(field, message));
+    None
+}

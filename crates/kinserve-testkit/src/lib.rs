@@ -1,0 +1,15 @@
+//! kinserve-testkit: what only tests, benchmarks and fuzzers need — never a
+//! dependency of a production crate.
+//!
+//! It owns the plain reference FK product that the fast paths are tested
+//! against ([`mod@reference`]), the property checks shared by the `cargo fuzz`
+//! targets in `fuzz/` and the corpus replay test ([`fuzzing`]), and the
+//! built-in robot files as bytes for those checks.
+//!
+//! May depend on anything in the workspace; nothing in the workspace may
+//! depend on it except as a dev-dependency.
+
+pub mod fuzzing;
+pub mod reference;
+
+pub use reference::{RobotExt, forward_reference, supported_kernels};
