@@ -114,14 +114,12 @@ fn fk(args: &FkArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let opts = FkOptions {
-        angle_unit: if args.deg {
-            AngleUnit::Deg
-        } else {
-            AngleUnit::Rad
-        },
-        check_limits: !args.no_limits,
+    let unit = if args.deg {
+        AngleUnit::Deg
+    } else {
+        AngleUnit::Rad
     };
+    let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
     let result = robot.check_joints(&args.joints, &opts).map(|q| {
         let (t, frames) = q.fk_with_frames(args.frames);
         (t, frames.map(|f| f.iter().map(Pose::from).collect()))

@@ -17,6 +17,23 @@
     )
 )]
 
+use crate::error::Error;
+
 pub mod grpc;
 pub mod pose;
 pub mod rest;
+
+/// The error a caught panic is answered with, on every front door: logs the
+/// panic's message (`what` says where) and returns [`Error::Internal`], whose
+/// text says it is a bug and carries nothing of the panic itself.
+pub(crate) fn panic_to_error(payload: &(dyn std::any::Any + Send), what: &str) -> Error {
+    let detail = payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("panic");
+    tracing::error!(panic = detail, "{what} panicked");
+    Error::Internal {
+        detail: "the handler failed unexpectedly; this is a bug".into(),
+    }
+}

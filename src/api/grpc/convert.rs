@@ -228,10 +228,7 @@ pub fn options_from_pb(o: Option<&pb::FkOptions>) -> Result<(FkOptions, bool)> {
         }
     };
     Ok((
-        FkOptions {
-            angle_unit,
-            check_limits: !o.skip_limit_check,
-        },
+        FkOptions::new(Some(angle_unit), Some(!o.skip_limit_check)),
         o.include_frames,
     ))
 }

@@ -260,10 +260,13 @@ impl KinematicsService for GrpcService {
                 let answer = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     this.fk_one(&msg.robot, &msg.joints, msg.options.as_ref())
                 }));
-                let Ok(answer) = answer else {
-                    tracing::error!("FK stream handler panicked");
-                    let _ = tx.send(Err(Status::from(panicked()))).await;
-                    return;
+                let answer = match answer {
+                    Ok(answer) => answer,
+                    Err(panic) => {
+                        let e = super::panic_to_error(panic.as_ref(), "gRPC FK stream handler");
+                        let _ = tx.send(Err(Status::from(e))).await;
+                        return;
+                    }
                 };
                 let resp = match answer {
                     Ok((pose, frames, unit)) => pb::StreamForwardKinematicsResponse {
@@ -291,25 +294,12 @@ impl KinematicsService for GrpcService {
     }
 }
 
-/// The error a caught panic is answered with (its message stays in the log).
-fn panicked() -> Error {
-    Error::Internal {
-        detail: "the handler failed unexpectedly; this is a bug".into(),
-    }
-}
-
 /// The answer to a request whose handler panicked: INTERNAL (trailers-only),
 /// logged; the server and the connection's other calls go on.
 fn panic_response(
     err: Box<dyn std::any::Any + Send + 'static>,
 ) -> tonic::codegen::http::Response<tonic::body::Body> {
-    let detail = err
-        .downcast_ref::<String>()
-        .map(String::as_str)
-        .or_else(|| err.downcast_ref::<&str>().copied())
-        .unwrap_or("panic");
-    tracing::error!(panic = detail, "gRPC handler panicked");
-    Status::from(panicked()).into_http()
+    Status::from(super::panic_to_error(err.as_ref(), "gRPC handler")).into_http()
 }
 
 /// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` is cancelled.

@@ -59,10 +59,7 @@ pub struct FkRequest {
 impl FkRequest {
     /// The evaluation options this request asks for.
     pub fn options(&self) -> FkOptions {
-        FkOptions {
-            angle_unit: self.angle_unit,
-            check_limits: self.check_limits,
-        }
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
     }
 }
 
@@ -84,10 +81,7 @@ pub struct FkBatchRequest {
 impl FkBatchRequest {
     /// The evaluation options this request asks for.
     pub fn options(&self) -> FkOptions {
-        FkOptions {
-            angle_unit: self.angle_unit,
-            check_limits: self.check_limits,
-        }
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
     }
 }
 
@@ -181,6 +175,14 @@ pub struct WsRequest {
     /// Reject values outside the joint limits (default true).
     #[serde(default = "default_true")]
     pub check_limits: bool,
+}
+
+
+impl WsRequest {
+    /// The evaluation options this message asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+    }
 }
 
 /// Just the `id` of a WebSocket message that failed to parse.

@@ -254,16 +254,7 @@ async fn record_metrics(req: Request, next: Next) -> Response {
 }
 
 fn panic_response(err: Box<dyn std::any::Any + Send + 'static>) -> Response {
-    let detail = err
-        .downcast_ref::<String>()
-        .map(String::as_str)
-        .or_else(|| err.downcast_ref::<&str>().copied())
-        .unwrap_or("panic");
-    tracing::error!(panic = detail, "handler panicked");
-    ApiError(Error::Internal {
-        detail: "the handler failed unexpectedly; this is a bug".into(),
-    })
-    .into_response()
+    ApiError(super::panic_to_error(err.as_ref(), "REST handler")).into_response()
 }
 
 fn cors(origins: &[String]) -> CorsLayer {

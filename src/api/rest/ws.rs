@@ -13,7 +13,6 @@ use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::Pose;
 use crate::error::Error;
-use crate::model::FkOptions;
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
@@ -148,10 +147,7 @@ fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         Ok(e) => e,
         Err(e) => return error_reply(&req.id, &e),
     };
-    let opts = FkOptions {
-        angle_unit: req.angle_unit,
-        check_limits: req.check_limits,
-    };
+    let opts = req.options();
     match state
         .service
         .fk_with_frames(&entry.robot, &req.joints, &opts, req.frames)
