@@ -1,4 +1,4 @@
-//! Closed-form forward kinematics from the course notes (`/work/shared/seeds/`)
+//! Closed-form forward kinematics from the course notes (`shared/seeds/` beside the repository)
 //! against the library's FK (`Robot::fk_unchecked`) for the course robots in
 //! `robots/`.
 //!
