@@ -7,8 +7,8 @@ use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
 
+use crate::helpers::pose::assert_pose_eq;
 use crate::helpers::*;
-use crate::rest::{assert_pose_eq, check_problem, fields};
 
 type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
@@ -232,10 +232,10 @@ async fn unknown_robot_is_404_before_the_upgrade() {
 async fn a_get_without_a_handshake_is_a_400_problem() {
     let app = spawn_app().await;
     let r = app.get("/v1/robots/planar_2dof/fk/stream").await;
-    let p = crate::rest::problem(r, 400).await;
+    let p = crate::helpers::problem(r, 400).await;
     assert_eq!(p["type"], "urn:kinserve:problem:malformed-request");
     let r = app.get("/v1/robots/no_such_robot/fk/stream").await;
-    crate::rest::problem(r, 404).await;
+    crate::helpers::problem(r, 404).await;
 }
 
 #[tokio::test]

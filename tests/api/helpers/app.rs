@@ -1,4 +1,4 @@
-//! Spawning the real server on port 0 and clients for it.
+//! Spawning the real server on port 0 (in process) and clients for it.
 
 use std::path::{Path, PathBuf};
 
@@ -123,53 +123,4 @@ impl Drop for TestApp {
     fn drop(&mut self) {
         self.shutdown.shutdown();
     }
-}
-
-/// A small valid model (2-DoF planar arm, metres, degrees).
-pub fn planar_model(name: &str) -> serde_json::Value {
-    serde_json::json!({
-        "name": name,
-        "convention": "standard",
-        "angle_unit": "deg",
-        "length_unit": "m",
-        "links": [
-            {"joint": "revolute", "a": 0.5, "alpha": 0, "d": 0, "theta": 0, "limits": [-170, 170]},
-            {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}
-        ]
-    })
-}
-
-/// Asserts two numbers agree within `tol` (absolute, scaled by max(1, |b|)).
-pub fn assert_close(a: f64, b: f64, tol: f64, what: &str) {
-    let scale = b.abs().max(1.0);
-    assert!(
-        (a - b).abs() <= tol * scale,
-        "{what}: {a} vs {b} (tol {tol})"
-    );
-}
-
-/// Position `[x,y,z]` from a JSON pose.
-pub fn position(pose: &serde_json::Value) -> [f64; 3] {
-    let p = pose["position"].as_array().expect("position array");
-    [
-        p[0].as_f64().unwrap(),
-        p[1].as_f64().unwrap(),
-        p[2].as_f64().unwrap(),
-    ]
-}
-
-/// The 16 matrix entries (row-major) of a JSON pose.
-pub fn matrix16(pose: &serde_json::Value) -> Vec<f64> {
-    pose["matrix"]
-        .as_array()
-        .expect("matrix")
-        .iter()
-        .flat_map(|r| {
-            r.as_array()
-                .expect("row")
-                .iter()
-                .map(|x| x.as_f64().expect("number"))
-                .collect::<Vec<_>>()
-        })
-        .collect()
 }

@@ -1,0 +1,13 @@
+//! gRPC contract tests: a tonic client against the real server on port 0.
+//!
+//! Every RPC of `kinematics.v1.KinematicsService` with its success path and every
+//! status code the issue names, health, reflection (v1 and v1alpha), the
+//! bidirectional stream (invalid message in the middle, slow reader, cancel,
+//! shutdown) and the registry shared with REST.
+//!
+//! Split by area; the shared helpers are in `crate::helpers`.
+
+mod fk;
+mod health;
+mod registry;
+mod stream;

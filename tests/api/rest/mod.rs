@@ -1,0 +1,13 @@
+//! REST contract tests: every endpoint and status code of the REST API, FK of
+//! built-ins against their closed forms, the token rule, persistence across a
+//! restart and start-up with a corrupt data directory.
+//!
+//! Split by area; the shared helpers are in `crate::helpers`.
+
+mod batch;
+mod fk;
+mod input;
+mod ops;
+mod overload;
+mod robots;
+mod storage;

@@ -1,0 +1,100 @@
+//! REST overload: the concurrency limit (503 with Retry-After) and the request
+//! timeout, driven by requests held in flight over raw connections.
+
+use serde_json::json;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+use crate::helpers::*;
+
+// ---------------------------------------------------------------- overload
+
+/// With one permit, a request whose body is still arriving holds it: every other
+/// admitted request gets 503 + Retry-After at once, health endpoints still answer,
+/// and the permit comes back when the slow request completes.
+#[tokio::test]
+async fn overloaded_is_503_with_retry_after() {
+    let app = spawn_app_with(|c| c.max_concurrent_requests = 1).await;
+    let body = br#"{"joints": [0, 0]}"#;
+    let slow = partial_request(&app, "/v1/robots/planar_2dof/fk", body, 3).await;
+    // Poll until the server has admitted the slow request (it then holds the only permit).
+    let mut rejected = None;
+    for _ in 0..500 {
+        let r = app.get("/v1/robots").await;
+        if r.status() == 503 {
+            rejected = Some(r);
+            break;
+        }
+        assert_eq!(r.status(), 200);
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    let r = rejected.expect("a request beyond the limit is rejected");
+    assert_eq!(r.headers()["retry-after"], "1");
+    let p = problem(r, 503).await;
+    assert_eq!(p["type"], "urn:kinserve:problem:overloaded");
+    problem(
+        app.post("/v1/robots/planar_2dof/fk", &json!({"joints": [0, 0]}))
+            .await,
+        503,
+    )
+    .await;
+    // Health endpoints are not subject to admission control.
+    assert_eq!(app.get("/healthz").await.status(), 200);
+    assert_eq!(app.get("/readyz").await.status(), 200);
+
+    let mut slow = slow;
+    slow.write_all(&body[3..]).await.unwrap();
+    let resp = read_response(slow).await;
+    assert!(resp.starts_with("HTTP/1.1 200"), "{resp}");
+    assert!(resp.contains("\"planar_2dof\""), "{resp}");
+    assert_eq!(app.get("/v1/robots").await.status(), 200, "permit released");
+}
+
+/// A request still unfinished at the request timeout gets 503 + Retry-After.
+#[tokio::test]
+async fn a_request_over_the_timeout_is_503() {
+    let app = spawn_app_with(|c| c.request_timeout = std::time::Duration::from_millis(200)).await;
+    let slow = partial_request(
+        &app,
+        "/v1/robots/planar_2dof/fk",
+        br#"{"joints": [0, 0]}"#,
+        1,
+    )
+    .await;
+    let resp = read_response(slow).await;
+    assert!(resp.starts_with("HTTP/1.1 503"), "{resp}");
+    let lower = resp.to_ascii_lowercase();
+    assert!(lower.contains("retry-after: 1"), "{resp}");
+    assert!(
+        lower.contains("content-type: application/problem+json"),
+        "{resp}"
+    );
+    assert!(resp.contains("timed out"), "{resp}");
+}
+
+fn host_port(app: &TestApp) -> String {
+    app.http.trim_start_matches("http://").to_owned()
+}
+
+/// Sends `method path` with `Content-Length: content_length` and only the first
+/// `sent` bytes of `body` over a raw connection: the request stays in flight
+/// (its handler waits for the rest of the body) until the caller writes more.
+async fn partial_request(app: &TestApp, path: &str, body: &[u8], sent: usize) -> TcpStream {
+    let mut s = TcpStream::connect(host_port(app)).await.expect("connect");
+    let head = format!(
+        "POST {path} HTTP/1.1\r\nHost: {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        host_port(app),
+        body.len()
+    );
+    s.write_all(head.as_bytes()).await.unwrap();
+    s.write_all(&body[..sent]).await.unwrap();
+    s.flush().await.unwrap();
+    s
+}
+
+/// Reads a whole HTTP/1.1 response (the request said `Connection: close`).
+async fn read_response(mut s: TcpStream) -> String {
+    let mut buf = Vec::new();
+    s.read_to_end(&mut buf).await.expect("read response");
+    String::from_utf8_lossy(&buf).into_owned()
+}
