@@ -5,6 +5,5 @@ mod crash;
 mod grpc;
 mod helpers;
 mod hostile;
-mod load;
 mod rest;
 mod ws;

@@ -177,7 +177,6 @@ pub struct WsRequest {
     pub check_limits: bool,
 }
 
-
 impl WsRequest {
     /// The evaluation options this message asks for.
     pub fn options(&self) -> FkOptions {

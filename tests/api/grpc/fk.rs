@@ -8,6 +8,7 @@ use tonic::Code;
 
 use crate::helpers::grpc::assert_pose_eq;
 use crate::helpers::*;
+use kinserve_testkit::RobotExt;
 
 // ---------------------------------------------------------------- FK RPCs
 
@@ -67,7 +68,7 @@ async fn forward_kinematics_frames_and_limit_options() {
     // Base frame plus one per DH row (7 joints + the fixed flange row).
     assert_eq!(r.frames.len(), 9);
     let (tool, frames) = panda
-        .fk_frames_checked(&q, &kinserve::model::FkOptions::default())
+        .fk_frames(&q, &kinserve::model::FkOptions::default())
         .unwrap();
     assert_pose_eq(r.pose.as_ref().unwrap(), &tool, 1e-12, "tool");
     for (i, (g, w)) in r.frames.iter().zip(&frames).enumerate() {

@@ -9,6 +9,7 @@ use tonic::transport::Channel;
 
 use crate::helpers::grpc::assert_pose_eq;
 use crate::helpers::*;
+use kinserve_testkit::RobotExt;
 
 // ---------------------------------------------------------------- streaming
 

@@ -297,13 +297,11 @@ pub(crate) fn library(case: &Case) -> Success {
         |e: kinserve::Error| -> ! { panic!("{}: the library rejects it: {e}", case.label) };
     let (t, frames) = if case.frames {
         let (t, f) = robot
-            .fk_frames_checked(&case.joints, &opts)
-            .unwrap_or_else(|e| reject(e));
+            .fk_frames(&case.joints, &opts)
+            .unwrap_or_else(|e| reject(e.into()));
         (t, Some(f.iter().map(PoseOut::from_transform).collect()))
     } else {
-        let t = robot
-            .fk_checked(&case.joints, &opts)
-            .unwrap_or_else(|e| reject(e));
+        let t = robot.fk(&case.joints, &opts).unwrap_or_else(|e| reject(e.into()));
         (t, None)
     };
     Success {

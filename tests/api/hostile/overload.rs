@@ -194,13 +194,11 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
     );
     let service = Arc::new(Service::new(registry, limits, None));
     service.set_ready(true);
-    let mut config = kinserve::config::ServeConfig::for_tests(std::env::temp_dir());
-    config.max_concurrent_requests = 1;
-    let (_tx, shutdown) = tokio::sync::watch::channel(false);
+    let config = kinserve::config::ServeConfig::for_tests(std::env::temp_dir());
     let state = AppState::new(AppInner {
         service,
-        config: Arc::new(config),
-        shutdown,
+        settings: config.rest_settings(),
+        shutdown: tokio_util::sync::CancellationToken::new(),
         metrics: kinserve::telemetry::metrics_handle(),
         permits: Arc::new(tokio::sync::Semaphore::new(1)),
     });

@@ -1,8 +1,50 @@
 //! Smoke load test: the real `kinserve-load` binary against the real server on
-//! port 0, every target, with `--verify`. Asserts zero errors and that every
-//! request was answered; never a timing threshold.
+//! port 0 (started in this process), every target, with `--verify`. Asserts
+//! zero errors and that every request was answered; never a timing threshold.
 
-use crate::helpers::*;
+use kinserve::config::ServeConfig;
+use kinserve::{App, ShutdownHandle};
+
+/// A running server with its own temporary data directory; stopped on drop.
+struct TestApp {
+    http: String,
+    grpc: String,
+    _tmp: tempfile::TempDir,
+    shutdown: ShutdownHandle,
+}
+
+impl Drop for TestApp {
+    fn drop(&mut self) {
+        self.shutdown.shutdown();
+    }
+}
+
+/// Starts the server with the test configuration and waits until `/readyz` is 200.
+async fn spawn_app() -> TestApp {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let app = App::build(ServeConfig::for_tests(tmp.path().to_path_buf()))
+        .await
+        .expect("server builds");
+    let http = format!("http://127.0.0.1:{}", app.http_port());
+    let grpc = format!("http://127.0.0.1:{}", app.grpc_port());
+    let shutdown = app.shutdown_handle();
+    tokio::spawn(app.run_until_stopped());
+    let client = reqwest::Client::new();
+    for _ in 0..500 {
+        if let Ok(r) = client.get(format!("{http}/readyz")).send().await
+            && r.status() == 200
+        {
+            return TestApp {
+                http,
+                grpc,
+                _tmp: tmp,
+                shutdown,
+            };
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    panic!("server not ready at {http}");
+}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_load_target_runs_clean_with_verification() {
