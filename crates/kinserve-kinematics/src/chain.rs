@@ -205,8 +205,15 @@ impl Chain {
     ///
     /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
+    #[inline]
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
-        self.forward_with(Kernel::best(), q, angle_scale)
+        // One feature check, then straight into the kernel (this is the hot path).
+        #[cfg(target_arch = "x86_64")]
+        if Kernel::Avx2Fma.is_supported() {
+            // SAFETY: the CPU supports avx2 and fma (checked just above).
+            return unsafe { self.forward_avx2(q, angle_scale) };
+        }
+        self.forward_impl::<false>(q, angle_scale)
     }
 
     /// [`Chain::forward`] on a given kernel (the portable one if the CPU lacks it).
@@ -570,14 +577,12 @@ fn apply_cols_as<const FMA: bool, const MODIFIED: bool>(
     d: f64,
 ) {
     let [c0, c1, c2, p] = *c;
-    let mut n = [[0.0; 4]; 4];
+    let (mut n0, mut n1, mut n2, mut np) = ([0.0; 4], [0.0; 4], [0.0; 4], [0.0; 4]);
     for k in 0..4 {
-        let row = dh_row::<FMA, MODIFIED>(l, ct, st, d, c0[k], c1[k], c2[k], p[k]);
-        for (col, v) in n.iter_mut().zip(row) {
-            col[k] = v;
-        }
+        [n0[k], n1[k], n2[k], np[k]] =
+            dh_row::<FMA, MODIFIED>(l, ct, st, d, c0[k], c1[k], c2[k], p[k]);
     }
-    *c = n;
+    *c = [n0, n1, n2, np];
 }
 
 /// One DH step on eight poses in structure-of-arrays form (the batch path):
