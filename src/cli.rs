@@ -2,14 +2,14 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
 use crate::config::{Cli, Command, FkArgs, ServeConfig};
 use crate::error::Error;
-use crate::model::{AngleUnit, FkOptions, load_robot_file};
+use crate::model::{AngleUnit, FkOptions, ModelLimits, load_robot_file};
+use crate::registry::builtin;
 
 /// Runs the command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
@@ -84,33 +84,38 @@ fn validate(files: &[std::path::PathBuf]) -> ExitCode {
 }
 
 fn fk(args: &FkArgs) -> ExitCode {
-    let path = match (&args.robot, &args.model) {
+    let (label, loaded) = match (&args.robot, &args.model) {
         (Some(name), _) => {
             if let Err(m) = crate::model::validate_name(name) {
                 eprintln!("--robot: {m}");
                 return ExitCode::FAILURE;
             }
-            args.robots_dir.join(format!("{name}.json"))
+            let limits = ModelLimits::default();
+            match builtin::find(name, args.robots_dir.as_deref(), &limits) {
+                Some(found) => found,
+                None => {
+                    let names: Vec<_> = builtin::embedded_names().collect();
+                    eprintln!(
+                        "no built-in robot '{name}' (built-in: {}); give --model FILE for your own",
+                        names.join(", ")
+                    );
+                    return ExitCode::FAILURE;
+                }
+            }
         }
-        (None, Some(p)) => p.clone(),
+        (None, Some(p)) => (
+            p.display().to_string(),
+            load_robot_file(p).map_err(Error::from),
+        ),
         (None, None) => {
             eprintln!("give --robot NAME or --model FILE");
             return ExitCode::FAILURE;
         }
     };
-    let label = path.display().to_string();
-    if args.robot.is_some() && !Path::new(&path).exists() {
-        eprintln!(
-            "no robot '{}' in {}",
-            args.robot.as_deref().unwrap_or(""),
-            args.robots_dir.display()
-        );
-        return ExitCode::FAILURE;
-    }
-    let robot = match load_robot_file(&path) {
+    let robot = match loaded {
         Ok(r) => r,
         Err(e) => {
-            print_error(&label, &e.into());
+            print_error(&label, &e);
             return ExitCode::FAILURE;
         }
     };

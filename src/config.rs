@@ -53,7 +53,7 @@ pub enum Command {
 #[derive(Debug, Args)]
 #[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
 pub struct FkArgs {
-    /// A robot from the robots directory, by name.
+    /// A built-in robot by name (or one from --robots-dir).
     #[arg(long)]
     pub robot: Option<String>,
     /// A robot model file (JSON).
@@ -76,9 +76,9 @@ pub struct FkArgs {
     /// Do not check joint limits.
     #[arg(long)]
     pub no_limits: bool,
-    /// Where built-in robots live.
-    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
-    pub robots_dir: PathBuf,
+    /// A directory of robot files (JSON) that add to or override the built-in robots.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
 }
 
 /// Log output format.
@@ -125,9 +125,10 @@ pub struct ServeConfig {
     /// gRPC listener (port 0 picks a free port).
     #[arg(long, env = "KINSERVE_GRPC_ADDR", default_value = "0.0.0.0:50051")]
     pub grpc_addr: SocketAddr,
-    /// Directory of built-in (read-only) robot files.
-    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
-    pub robots_dir: PathBuf,
+    /// A directory of read-only robot files (JSON) that add to or override the
+    /// built-in robots, which are embedded in the binary.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
     /// Where registered robots are persisted.
     #[arg(long, env = "KINSERVE_DATA_DIR", default_value = "./data")]
     pub data_dir: PathBuf,
@@ -234,12 +235,12 @@ impl Default for ServeConfig {
 
 impl ServeConfig {
     /// A configuration for tests: both listeners on 127.0.0.1 port 0, data in `data_dir`,
-    /// built-ins from the crate's `robots/`, no env influence.
+    /// the embedded built-in robots only, no env influence.
     pub fn for_tests(data_dir: PathBuf) -> ServeConfig {
         ServeConfig {
             http_addr: "127.0.0.1:0".parse().expect("valid literal"),
             grpc_addr: "127.0.0.1:0".parse().expect("valid literal"),
-            robots_dir: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/robots")),
+            robots_dir: None,
             data_dir,
             api_token: None,
             cors_origins: Vec::new(),

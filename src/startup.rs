@@ -51,10 +51,7 @@ impl App {
         let store =
             FileStore::open(&config.data_dir).map_err(|e| std::io::Error::other(e.to_string()))?;
         let registry = Registry::new(Box::new(store));
-        let builtins = registry.load_builtins(&config.robots_dir, &limits.model);
-        if builtins.loaded == 0 {
-            tracing::warn!(dir = %config.robots_dir.display(), "no built-in robots loaded (set --robots-dir / KINSERVE_ROBOTS_DIR)");
-        }
+        let builtins = registry.load_builtins(config.robots_dir.as_deref(), &limits.model);
         let stored = registry.load_stored(&limits.model);
         for (label, e) in builtins.skipped.iter().chain(&stored.skipped) {
             tracing::error!(file = %label, error = %e, "skipping robot file (left in place)");

@@ -3,6 +3,7 @@
 //! publish a new snapshot (copy-on-write) only after the store has made the
 //! change durable.
 
+pub mod builtin;
 mod store;
 
 use std::collections::HashMap;
@@ -14,7 +15,7 @@ use arc_swap::ArcSwap;
 pub use store::{FileStore, MemoryStore, Store};
 
 use crate::error::{Error, Result};
-use crate::model::{ModelLimits, Robot, load_robot_file_with};
+use crate::model::{ModelLimits, Robot};
 
 /// Where a robot came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,24 +80,20 @@ impl Registry {
         }
     }
 
-    /// Loads every `*.json` in `dir` as a read-only built-in. Invalid files are
-    /// reported and skipped. A missing directory loads nothing.
-    pub fn load_builtins(&self, dir: &Path, limits: &ModelLimits) -> LoadReport {
+    /// Loads the built-in robots, read-only: the ones embedded in the binary,
+    /// then every `*.json` in `dir` (when given), which adds robots or
+    /// replaces embedded ones of the same name. Invalid files are reported
+    /// and skipped.
+    pub fn load_builtins(&self, dir: Option<&Path>, limits: &ModelLimits) -> LoadReport {
         let mut report = LoadReport::default();
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return report;
-        };
-        let mut paths: Vec<_> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "json"))
-            .collect();
-        paths.sort();
+        let files = builtin::embedded(limits).chain(
+            dir.map(|d| builtin::from_dir(d, limits))
+                .into_iter()
+                .flatten(),
+        );
         let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
         let mut map = Map::clone(&self.map.load());
-        for path in paths {
-            let label = path.display().to_string();
-            let result = load_robot_file_with(&path, limits).map_err(Error::from);
+        for (label, result) in files {
             match result {
                 Ok(robot) => {
                     map.insert(
@@ -106,11 +103,11 @@ impl Registry {
                             origin: Origin::Builtin,
                         }),
                     );
-                    report.loaded += 1;
                 }
                 Err(e) => report.skipped.push((label, e)),
             }
         }
+        report.loaded = map.values().filter(|e| e.origin == Origin::Builtin).count();
         self.map.store(Arc::new(map));
         report
     }

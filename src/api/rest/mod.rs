@@ -326,7 +326,11 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .route("/", get(playground::index))
         .route("/playground/{file}", get(playground::file));
     let cors = cors(&state.settings.cors_origins);
-    api.merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
+    // validatorUrl "none": Swagger UI must not send the spec's URL to the public validator.
+    let swagger = SwaggerUi::new("/docs")
+        .url("/openapi.json", ApiDoc::openapi())
+        .config(utoipa_swagger_ui::Config::new(["/openapi.json"]).validator_url("none"));
+    api.merge(swagger)
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state)
