@@ -59,20 +59,29 @@ fn print_error(label: &str, e: &Error) {
     }
 }
 
+/// A robot file, or its errors printed (a missing file said plainly, not as malformed input).
+fn load_file(path: &std::path::Path) -> Option<crate::model::Robot> {
+    let label = path.display().to_string();
+    if !path.exists() {
+        eprintln!("{label}: no such file");
+        return None;
+    }
+    load_robot_file(path)
+        .map_err(|e| print_error(&label, &Error::from(e)))
+        .ok()
+}
+
 fn validate(files: &[std::path::PathBuf]) -> ExitCode {
     let mut failed = 0;
     for f in files {
-        match load_robot_file(f) {
-            Ok(robot) => println!(
+        match load_file(f) {
+            Some(robot) => println!(
                 "{}: ok ({}, {} joints)",
                 f.display(),
                 robot.name(),
                 robot.dof()
             ),
-            Err(e) => {
-                failed += 1;
-                print_error(&f.display().to_string(), &e.into());
-            }
+            None => failed += 1,
         }
     }
     if failed > 0 {
@@ -103,10 +112,10 @@ fn fk(args: &FkArgs) -> ExitCode {
                 }
             }
         }
-        (None, Some(p)) => (
-            p.display().to_string(),
-            load_robot_file(p).map_err(Error::from),
-        ),
+        (None, Some(p)) => match load_file(p) {
+            Some(robot) => (p.display().to_string(), Ok(robot)),
+            None => return ExitCode::FAILURE,
+        },
         (None, None) => {
             eprintln!("give --robot NAME or --model FILE");
             return ExitCode::FAILURE;

@@ -27,10 +27,12 @@ pub enum Error {
         violations: Vec<FieldViolation>,
     },
     /// No robot of that name (HTTP 404, gRPC NOT_FOUND).
-    #[error("robot '{name}' not found")]
+    #[error("robot '{name}' not found{}", did_you_mean(suggestions))]
     NotFound {
         /// The robot name asked for.
         name: String,
+        /// The nearest names that exist (case-insensitive edit distance), best first.
+        suggestions: Vec<String>,
     },
     /// No such route or method (HTTP 404, gRPC UNIMPLEMENTED).
     #[error("no route for '{path}'")]
@@ -140,6 +142,18 @@ impl From<ModelError> for Error {
         match e {
             ModelError::Malformed { detail, violations } => Error::Malformed { detail, violations },
             ModelError::Invalid { detail, violations } => Error::Invalid { detail, violations },
+        }
+    }
+}
+
+/// "; did you mean 'a' or 'b'?" for a non-empty list, else nothing.
+fn did_you_mean(suggestions: &[String]) -> String {
+    match suggestions {
+        [] => String::new(),
+        [one] => format!("; did you mean '{one}'?"),
+        [init @ .., last] => {
+            let init: Vec<String> = init.iter().map(|s| format!("'{s}'")).collect();
+            format!("; did you mean {} or '{last}'?", init.join(", "))
         }
     }
 }

@@ -157,11 +157,47 @@ impl Service {
             .collect()
     }
 
-    /// The robot called `name`.
+    /// The robot called `name`. An empty name is malformed input; an unknown
+    /// one is [`Error::NotFound`] with the nearest existing names.
     pub fn robot(&self, name: &str) -> Result<Arc<Entry>> {
+        self.robot_at(name, "name")
+    }
+
+    /// [`Service::robot`] for a request whose robot name is in field `field`
+    /// (`robot` in the gRPC FK messages), which an empty name is reported against.
+    pub fn robot_at(&self, name: &str, field: &str) -> Result<Arc<Entry>> {
+        if name.is_empty() {
+            return Err(Error::malformed_field(
+                field,
+                "must not be empty: give a robot name (GET /v1/robots or ListRobots lists them)",
+            ));
+        }
         self.registry.get(name).ok_or_else(|| Error::NotFound {
             name: truncate_name(name),
+            suggestions: self.nearest_names(name),
         })
+    }
+
+    /// Up to three registered names close to `name`: equal ignoring case and
+    /// `-`/`_`, or within a small edit distance (case-insensitive), best first.
+    fn nearest_names(&self, name: &str) -> Vec<String> {
+        let wanted = normalise(name);
+        if wanted.chars().count() > 64 {
+            return Vec::new();
+        }
+        let budget = (wanted.chars().count() / 3).max(2);
+        let mut scored: Vec<(usize, String)> = self
+            .registry
+            .list()
+            .iter()
+            .map(|e| e.robot.name().to_string())
+            .filter_map(|n| {
+                let d = edit_distance(&wanted, &normalise(&n));
+                (d <= budget).then_some((d, n))
+            })
+            .collect();
+        scored.sort();
+        scored.into_iter().take(3).map(|(_, n)| n).collect()
     }
 
     /// Validates and registers a model, durably. `Ok(true)` if created,
@@ -274,4 +310,28 @@ fn truncate_name(name: &str) -> String {
         s.push('…');
     }
     s
+}
+
+/// Lowercase, with `-`, `_` and spaces removed (`Puma-560` → `puma560`).
+fn normalise(name: &str) -> String {
+    name.chars()
+        .filter(|c| !matches!(c, '-' | '_' | ' '))
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
+/// Levenshtein distance between two short strings (characters).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (up + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
+            diag = up;
+        }
+    }
+    row[b.len()]
 }

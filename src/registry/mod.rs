@@ -198,6 +198,7 @@ impl Registry {
             None => {
                 return Err(Error::NotFound {
                     name: name.to_string(),
+                    suggestions: Vec::new(),
                 });
             }
             Some(e) if e.origin == Origin::Builtin => {

@@ -2,6 +2,7 @@
 mod browser;
 mod contract;
 mod crash;
+mod errors;
 mod grpc;
 mod helpers;
 mod hostile;

@@ -124,3 +124,18 @@ fn robots_dir_adds_and_overrides_built_ins() {
     );
     assert!(registry.get("my_arm").is_some(), "added");
 }
+
+#[test]
+fn a_missing_model_file_is_said_plainly() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        vec!["fk", "--model", "nope.json", "--joints", "0"],
+        vec!["validate", "nope.json"],
+    ] {
+        let out = kinserve_elsewhere(dir.path()).args(&args).output().unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("nope.json: no such file"), "{args:?}: {err}");
+        assert!(!err.contains("malformed"), "{args:?}: {err}");
+    }
+}

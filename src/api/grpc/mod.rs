@@ -94,7 +94,7 @@ impl GrpcService {
         joints: &[f64],
         options: Option<&pb::FkOptions>,
     ) -> Result<(pb::Pose, Vec<pb::Pose>, pb::LengthUnit), Error> {
-        let entry = self.service.robot(robot)?;
+        let entry = self.service.robot_at(robot, "robot")?;
         let (opts, frames) = convert::options_from_pb(options)?;
         let unit = convert::length_unit_to_pb(entry.robot.length_unit());
         let (t, fr) = self
@@ -200,7 +200,7 @@ impl KinematicsService for GrpcService {
         let _permit = self.admit()?;
         let req = req.into_inner();
         self.service.check_batch_size(req.configurations.len())?;
-        let entry = self.service.robot(&req.robot)?;
+        let entry = self.service.robot_at(&req.robot, "robot")?;
         let (opts, _) = convert::options_from_pb(req.options.as_ref())?;
         let mut configs = Configurations {
             values: Vec::with_capacity(req.configurations.len() * entry.robot.dof()),
