@@ -6,5 +6,6 @@ mod errors;
 mod grpc;
 mod helpers;
 mod hostile;
+mod openapi;
 mod rest;
 mod ws;

@@ -3,6 +3,7 @@
 mod dto;
 mod extract;
 mod handlers;
+mod openapi;
 mod playground;
 pub mod problem;
 mod ws;
@@ -30,6 +31,8 @@ use utoipa_swagger_ui::SwaggerUi;
 
 pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
 pub use problem::{ApiError, Problem, ProblemField};
+
+use openapi::Complete;
 
 use crate::error::Error;
 use crate::service::Service;
@@ -104,12 +107,15 @@ impl Modify for SecurityAddon {
         handlers::fk, handlers::fk_batch, ws::stream, metrics_text
     ),
     components(schemas(WsRequest, dto::WsReply)),
-    modifiers(&SecurityAddon)
+    modifiers(&SecurityAddon, &Complete)
 )]
 pub struct ApiDoc;
 
 /// Prometheus metrics in text exposition format.
-#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text", content_type = "text/plain")))]
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200,
+    description = "Prometheus text exposition format: every family has # HELP and # TYPE lines",
+    content_type = "text/plain",
+    example = "# HELP kinserve_robots Robots in the registry, by source.\n# TYPE kinserve_robots gauge\nkinserve_robots{source=\"builtin\"} 19\n")))]
 async fn metrics_text(State(state): State<AppState>) -> Response {
     (
         [(

@@ -125,6 +125,7 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
 fn error_reply(id: &serde_json::Value, e: &Error) -> String {
     let reply = WsReply {
         id,
+        length_unit: None,
         pose: None,
         frames: None,
         error: Some(Problem::from_error(e)),
@@ -155,6 +156,7 @@ fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         Ok((t, frames)) => {
             let reply = WsReply {
                 id: &req.id,
+                length_unit: Some(entry.robot.length_unit()),
                 pose: Some(Pose::from(&t)),
                 frames: frames.as_deref().map(PosesSer),
                 error: None,
