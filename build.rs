@@ -9,6 +9,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let protos = [
         "proto/kinematics/v1/kinematics.proto",
         "proto/google/rpc/status.proto",
+        // Compiled only into the descriptor set (served by reflection) so
+        // that tools such as grpcurl decode the BadRequest details we send.
+        "proto/google/rpc/error_details.proto",
     ];
     for p in protos {
         println!("cargo:rerun-if-changed={p}");
@@ -17,9 +20,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     embed_builtin_robots(&out)?;
     tonic_prost_build::configure()
         .file_descriptor_set_path(out.join("kinematics_descriptor.bin"))
-        .extern_path(".google.rpc.Status", "::tonic_types::Status")
+        .extern_path(".google.rpc", "::tonic_types")
         .compile_protos(
-            &[std::path::PathBuf::from(protos[0])],
+            &[
+                std::path::PathBuf::from(protos[0]),
+                std::path::PathBuf::from(protos[2]),
+            ],
             &[
                 std::path::PathBuf::from("proto"),
                 protoc_bin_vendored::include_path()?,

@@ -317,6 +317,8 @@ pub async fn serve(
     health
         .set_service_status("", tonic_health::ServingStatus::Serving)
         .await;
+    // Every descriptor set we serve, on both reflection versions, each of
+    // which also lists the other (grpcurl and older clients use either).
     let descriptors = [
         pb::FILE_DESCRIPTOR_SET,
         tonic_health::pb::FILE_DESCRIPTOR_SET,
@@ -327,6 +329,10 @@ pub async fn serve(
         v1 = v1.register_encoded_file_descriptor_set(d);
         v1alpha = v1alpha.register_encoded_file_descriptor_set(d);
     }
+    v1 =
+        v1.register_encoded_file_descriptor_set(tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET);
+    v1alpha =
+        v1alpha.register_encoded_file_descriptor_set(tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET);
     let reflection_v1 = v1.build_v1().map_err(std::io::Error::other)?;
     let reflection_v1alpha = v1alpha.build_v1alpha().map_err(std::io::Error::other)?;
     let max_message = settings.max_message_bytes;
