@@ -201,7 +201,14 @@ impl KinematicsService for GrpcService {
         let req = req.into_inner();
         self.service.check_batch_size(req.configurations.len())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
-        let (opts, _) = convert::options_from_pb(req.options.as_ref())?;
+        let (opts, frames) = convert::options_from_pb(req.options.as_ref())?;
+        if frames {
+            return Err(Error::malformed_field(
+                "options.frames",
+                "batch FK returns tool poses only: ask ForwardKinematics or the stream for frames",
+            )
+            .into());
+        }
         let mut configs = Configurations {
             values: Vec::with_capacity(req.configurations.len() * entry.robot.dof()),
             lens: Vec::with_capacity(req.configurations.len()),

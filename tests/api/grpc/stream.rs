@@ -49,8 +49,9 @@ async fn stream_answers_each_request_in_order_and_survives_invalid_messages() {
             &[10.0, 20.0, 30.0, 40.0, 50.0],
             Some(pb::FkOptions {
                 angle_unit: pb::AngleUnit::Deg as i32,
-                include_frames: true,
-                skip_limit_check: false,
+                frames: Some(true),
+                check_limits: Some(true),
+                ..Default::default()
             }),
         ),
         stream_request(6, "puma560", &ok_puma, None),

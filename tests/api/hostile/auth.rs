@@ -179,6 +179,7 @@ async fn every_mutation_needs_the_token_and_reads_leak_nothing() {
             [
                 "grpc.health.v1.Health",
                 "grpc.reflection.v1.ServerReflection",
+                "grpc.reflection.v1alpha.ServerReflection",
                 "kinematics.v1.KinematicsService",
             ]
         );

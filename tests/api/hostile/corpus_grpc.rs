@@ -109,10 +109,10 @@ fn model_pb(m: &Value) -> pb::Robot {
             .map(|l| pb::Link {
                 name: None,
                 joint: enum_of(&l["joint"], &joints, 0),
-                a: num(&l["a"]),
-                alpha: num(&l["alpha"]),
-                d: num(&l["d"]),
-                theta: num(&l["theta"]),
+                a: l.get("a").map(num),
+                alpha: l.get("alpha").map(num),
+                d: l.get("d").map(num),
+                theta: l.get("theta").map(num),
                 limits: l["limits"].as_array().map(|x| pb::Limits {
                     lo: num(&x[0]),
                     hi: num(&x[1]),
