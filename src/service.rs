@@ -1,8 +1,8 @@
 //! The protocol-neutral service: what REST and gRPC both call. Adapters
 //! validate and convert their wire types, call one method here, and convert back.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
 
 use subtle::ConstantTimeEq;
 
@@ -80,8 +80,6 @@ pub struct Service {
     limits: ServiceLimits,
     ready: AtomicBool,
     token: Option<String>,
-    /// Handle of `kinserve_poses_computed_total`, resolved on first use (after the recorder is installed).
-    poses: OnceLock<metrics::Counter>,
 }
 
 impl Service {
@@ -92,7 +90,6 @@ impl Service {
             limits,
             ready: AtomicBool::new(false),
             token: token.filter(|t| !t.is_empty()),
-            poses: OnceLock::new(),
         }
     }
 
@@ -227,11 +224,6 @@ impl Service {
         Ok(())
     }
 
-    fn poses_counter(&self) -> &metrics::Counter {
-        self.poses
-            .get_or_init(|| metrics::counter!("kinserve_poses_computed_total"))
-    }
-
     /// Publishes the robot counts as gauges.
     pub fn record_robot_count(&self) {
         let (builtin, registered) = self.registry.counts();
@@ -241,9 +233,7 @@ impl Service {
 
     /// Checked FK of one configuration: the tool pose.
     pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
-        let t = robot.check_joints(q, opts)?.fk();
-        self.poses_counter().increment(1);
-        Ok(t)
+        Ok(robot.check_joints(q, opts)?.fk())
     }
 
     /// Checked FK of one configuration with every frame (see [`crate::model::JointVector::fk_frames`]).
@@ -253,9 +243,7 @@ impl Service {
         q: &[f64],
         opts: &FkOptions,
     ) -> Result<(Transform, Vec<Transform>)> {
-        let r = robot.check_joints(q, opts)?.fk_frames();
-        self.poses_counter().increment(1);
-        Ok(r)
+        Ok(robot.check_joints(q, opts)?.fk_frames())
     }
 
     /// Checked FK of one configuration: the tool pose, and every frame when
@@ -267,9 +255,7 @@ impl Service {
         opts: &FkOptions,
         frames: bool,
     ) -> Result<(Transform, Option<Vec<Transform>>)> {
-        let r = robot.check_joints(q, opts)?.fk_with_frames(frames);
-        self.poses_counter().increment(1);
-        Ok(r)
+        Ok(robot.check_joints(q, opts)?.fk_with_frames(frames))
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
@@ -298,7 +284,6 @@ impl Service {
         let out = robot
             .check_batch(&configs.values, &configs.lens, opts)?
             .fk();
-        self.poses_counter().increment(out.len() as u64);
         Ok(out)
     }
 }

@@ -8,7 +8,7 @@ mod store;
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use arc_swap::ArcSwap;
 
@@ -16,6 +16,7 @@ pub use store::{FileStore, MemoryStore, Store};
 
 use crate::error::{Error, Result};
 use crate::model::{ModelLimits, Robot};
+use crate::telemetry::{PoseCounters, Protocol, robot_label};
 
 /// Where a robot came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,6 +34,29 @@ pub struct Entry {
     pub robot: Robot,
     /// Built-in or registered.
     pub origin: Origin,
+    /// Its `kinserve_poses_computed_total` counters, resolved on first use.
+    poses: OnceLock<PoseCounters>,
+}
+
+impl Entry {
+    /// An entry for `robot`.
+    pub fn new(robot: Robot, origin: Origin) -> Entry {
+        Entry {
+            robot,
+            origin,
+            poses: OnceLock::new(),
+        }
+    }
+
+    /// Counts `n` poses computed for this robot over `protocol`.
+    pub fn count_poses(&self, protocol: Protocol, n: u64) {
+        self.poses
+            .get_or_init(|| {
+                let label = robot_label(self.robot.name(), self.origin == Origin::Builtin);
+                PoseCounters::new(&label)
+            })
+            .add(protocol, n);
+    }
 }
 
 /// How a registration treats an existing robot of the same name.
@@ -98,10 +122,7 @@ impl Registry {
                 Ok(robot) => {
                     map.insert(
                         robot.name().to_string(),
-                        Arc::new(Entry {
-                            robot,
-                            origin: Origin::Builtin,
-                        }),
+                        Arc::new(Entry::new(robot, Origin::Builtin)),
                     );
                 }
                 Err(e) => report.skipped.push((label, e)),
@@ -131,10 +152,7 @@ impl Registry {
                     }
                     map.insert(
                         robot.name().to_string(),
-                        Arc::new(Entry {
-                            robot,
-                            origin: Origin::Registered,
-                        }),
+                        Arc::new(Entry::new(robot, Origin::Registered)),
                     );
                     report.loaded += 1;
                 }
@@ -177,15 +195,9 @@ impl Registry {
             Some(_) => false,
             None => true,
         };
-        self.store.save(robot.spec())?;
+        timed_write("put", || self.store.save(robot.spec()))?;
         let mut map = Map::clone(&current);
-        map.insert(
-            name,
-            Arc::new(Entry {
-                robot,
-                origin: Origin::Registered,
-            }),
-        );
+        map.insert(name, Arc::new(Entry::new(robot, Origin::Registered)));
         self.map.store(Arc::new(map));
         Ok(created)
     }
@@ -208,10 +220,20 @@ impl Registry {
             }
             Some(_) => {}
         }
-        self.store.delete(name)?;
+        timed_write("delete", || self.store.delete(name))?;
         let mut map = Map::clone(&current);
         map.remove(name);
         self.map.store(Arc::new(map));
         Ok(())
     }
+}
+
+/// Runs a durable store write, recording its latency in
+/// `kinserve_store_write_duration_seconds{op}`.
+fn timed_write<T>(op: &'static str, write: impl FnOnce() -> Result<T>) -> Result<T> {
+    let start = std::time::Instant::now();
+    let r = write();
+    metrics::histogram!("kinserve_store_write_duration_seconds", "op" => op)
+        .record(start.elapsed().as_secs_f64());
+    r
 }

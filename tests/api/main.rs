@@ -6,6 +6,7 @@ mod errors;
 mod grpc;
 mod helpers;
 mod hostile;
+mod metrics;
 mod openapi;
 mod rest;
 mod ws;

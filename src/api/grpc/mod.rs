@@ -1,6 +1,7 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and reflection.
 
 mod convert;
+mod grpc_metrics;
 mod oversize;
 pub mod status;
 
@@ -19,6 +20,7 @@ use tonic::{Request, Response, Status, Streaming};
 use crate::error::Error;
 use crate::registry::PutMode;
 use crate::service::{Configurations, Service};
+use crate::telemetry::{Protocol, StreamGuard};
 
 /// Generated protobuf and tonic code for `kinematics.v1`.
 #[allow(missing_docs, clippy::all)]
@@ -100,6 +102,7 @@ impl GrpcService {
         let (t, fr) = self
             .service
             .fk_with_frames(&entry.robot, joints, &opts, frames)?;
+        entry.count_poses(Protocol::Grpc, 1);
         let frames = fr.iter().flatten().map(convert::pose_to_pb).collect();
         Ok((convert::pose_to_pb(&t), frames, unit))
     }
@@ -217,6 +220,7 @@ impl KinematicsService for GrpcService {
             configs.push(&c.joints);
         }
         let poses = self.service.fk_batch(&entry.robot, &configs, &opts)?;
+        entry.count_poses(Protocol::Grpc, poses.len() as u64);
         Ok(Response::new(pb::ForwardKinematicsBatchResponse {
             robot: req.robot,
             length_unit: convert::length_unit_to_pb(entry.robot.length_unit()) as i32,
@@ -238,6 +242,7 @@ impl KinematicsService for GrpcService {
         let shutdown = self.shutdown.clone();
         tokio::spawn(async move {
             let _permit = permit;
+            let _stream = StreamGuard::open(Protocol::Grpc);
             loop {
                 let next = tokio::select! {
                     _ = shutdown.cancelled() => {
@@ -362,7 +367,14 @@ pub async fn serve(
         })
     });
     let health_on_stop = health.clone();
+    let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(&[
+        pb::FILE_DESCRIPTOR_SET,
+        tonic_health::pb::FILE_DESCRIPTOR_SET,
+        tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET,
+        tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
+    ]);
     tonic::transport::Server::builder()
+        .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,
         ))

@@ -15,6 +15,7 @@ use crate::api::pose::{FkOutput, Pose};
 use crate::error::Error;
 use crate::model::RobotSpec;
 use crate::registry::{Origin, PutMode};
+use crate::telemetry::Protocol;
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -188,6 +189,7 @@ pub async fn fk(
     let (pose, frames) = state
         .service
         .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
+    entry.count_poses(Protocol::Rest, 1);
     let frames = frames.map(|f| f.iter().map(Pose::from).collect());
     Ok(Json(FkOutput {
         robot: robot.name().to_string(),
@@ -217,6 +219,7 @@ pub async fn fk_batch(
     let poses = state
         .service
         .fk_batch(robot, &req.configurations, &req.options())?;
+    entry.count_poses(Protocol::Rest, poses.len() as u64);
     let body = FkBatchResponse {
         robot: robot.name(),
         length_unit: robot.length_unit(),

@@ -117,6 +117,7 @@ pub struct ApiDoc;
     content_type = "text/plain",
     example = "# HELP kinserve_robots Robots in the registry, by source.\n# TYPE kinserve_robots gauge\nkinserve_robots{source=\"builtin\"} 19\n")))]
 async fn metrics_text(State(state): State<AppState>) -> Response {
+    crate::telemetry::update_process_metrics();
     (
         [(
             header::CONTENT_TYPE,

@@ -13,6 +13,7 @@ use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::Pose;
 use crate::error::Error;
+use crate::telemetry::{Protocol, StreamGuard};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
@@ -69,6 +70,7 @@ async fn close(socket: &mut WebSocket, reason: &'static str) {
 }
 
 async fn run(mut socket: WebSocket, state: AppState, name: String) {
+    let _stream = StreamGuard::open(Protocol::WebSocket);
     let shutdown = state.shutdown.clone();
     let idle = state.settings.stream_idle_timeout;
     loop {
@@ -123,6 +125,7 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
 }
 
 fn error_reply(id: &serde_json::Value, e: &Error) -> String {
+    crate::telemetry::ws_message(false);
     let reply = WsReply {
         id,
         length_unit: None,
@@ -154,6 +157,8 @@ fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         .fk_with_frames(&entry.robot, &req.joints, &opts, req.frames)
     {
         Ok((t, frames)) => {
+            entry.count_poses(Protocol::WebSocket, 1);
+            crate::telemetry::ws_message(true);
             let reply = WsReply {
                 id: &req.id,
                 length_unit: Some(entry.robot.length_unit()),
