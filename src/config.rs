@@ -134,6 +134,10 @@ pub struct ServeConfig {
         value_delimiter = ','
     )]
     pub cors_origins: Vec<String>,
+    /// One access-log line per HTTP request and gRPC call at info (method,
+    /// route, status, duration, request id); `false` turns it off.
+    #[arg(long, env = "KINSERVE_ACCESS_LOG", default_value_t = true, action = clap::ArgAction::Set)]
+    pub access_log: bool,
     /// Log format.
     #[arg(long, env = "KINSERVE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Human)]
     pub log_format: LogFormat,
@@ -179,6 +183,7 @@ impl std::fmt::Debug for ServeConfig {
             api_token,
             cors_origins,
             log_format,
+            access_log,
             max_batch,
             max_joints,
             max_links,
@@ -198,6 +203,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
             .field("cors_origins", cors_origins)
             .field("log_format", log_format)
+            .field("access_log", access_log)
             .field("max_batch", max_batch)
             .field("max_joints", max_joints)
             .field("max_links", max_links)
@@ -237,6 +243,7 @@ impl ServeConfig {
             api_token: None,
             cors_origins: Vec::new(),
             log_format: LogFormat::Human,
+            access_log: true,
             max_batch: 10_000,
             max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
             max_links: ModelLimits::DEFAULT_MAX_LINKS,
@@ -258,6 +265,7 @@ impl ServeConfig {
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
             cors_origins: self.cors_origins.clone(),
+            access_log: self.access_log,
         }
     }
 
@@ -267,6 +275,7 @@ impl ServeConfig {
             max_message_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
+            access_log: self.access_log,
         }
     }
 

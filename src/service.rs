@@ -125,7 +125,15 @@ impl Service {
         };
         match presented {
             Some(p) if bool::from(p.as_bytes().ct_eq(expected.as_bytes())) => Ok(()),
-            _ => Err(Error::Unauthenticated),
+            _ => {
+                let token = if presented.is_some() {
+                    "wrong"
+                } else {
+                    "missing"
+                };
+                tracing::info!(target: "kinserve::audit", token, result = "refused", "registry change refused: missing or invalid bearer token");
+                Err(Error::Unauthenticated)
+            }
         }
     }
 
@@ -198,8 +206,19 @@ impl Service {
     }
 
     /// Validates and registers a model, durably. `Ok(true)` if created,
-    /// `Ok(false)` if it replaced a registered robot.
+    /// `Ok(false)` if it replaced a registered robot. Writes one audit line.
     pub async fn register(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
+        let name = truncate_name(&spec.name);
+        let result = self.register_inner(spec, mode).await;
+        let action = match (mode, &result) {
+            (_, Ok(true)) | (PutMode::Create, _) => "register",
+            (PutMode::Upsert, _) => "replace",
+        };
+        self.audit(action, &name, &result);
+        result
+    }
+
+    async fn register_inner(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
         let robot = Robot::from_spec(spec, &self.limits.model)?;
         let this = Arc::clone(self);
         let created = tokio::task::spawn_blocking(move || this.registry.put(robot, mode))
@@ -211,17 +230,40 @@ impl Service {
         Ok(created)
     }
 
-    /// Deletes a registered robot, durably.
+    /// Deletes a registered robot, durably. Writes one audit line.
     pub async fn delete(self: &Arc<Self>, name: &str) -> Result<()> {
         let this = Arc::clone(self);
-        let name = name.to_string();
-        tokio::task::spawn_blocking(move || this.registry.delete(&name))
+        let owned = name.to_string();
+        let result = tokio::task::spawn_blocking(move || this.registry.delete(&owned))
             .await
             .map_err(|e| Error::Internal {
                 detail: e.to_string(),
-            })??;
-        self.record_robot_count();
-        Ok(())
+            })
+            .and_then(|r| r);
+        if result.is_ok() {
+            self.record_robot_count();
+        }
+        self.audit("delete", &truncate_name(name), &result);
+        result
+    }
+
+    /// One audit line per registry change (target `kinserve::audit`): what,
+    /// which robot, the outcome, and who — whether a bearer token was
+    /// required and so presented (the token itself is never logged).
+    fn audit<T>(&self, action: &str, robot: &str, result: &Result<T>) {
+        let who = if self.auth_required() {
+            "bearer token"
+        } else {
+            "anyone (no API token configured)"
+        };
+        match result {
+            Ok(_) => {
+                tracing::info!(target: "kinserve::audit", action, robot, who, result = "ok", "registry change")
+            }
+            Err(e) => {
+                tracing::info!(target: "kinserve::audit", action, robot, who, result = "refused", error = %e, "registry change refused")
+            }
+        }
     }
 
     /// Publishes the robot counts as gauges.

@@ -6,6 +6,7 @@ mod errors;
 mod grpc;
 mod helpers;
 mod hostile;
+mod logs;
 mod metrics;
 mod openapi;
 mod rest;

@@ -21,12 +21,14 @@ use tower::{Layer, Service};
 #[derive(Clone, Debug)]
 pub struct GrpcMetricsLayer {
     methods: Arc<HashSet<String>>,
+    access_log: bool,
 }
 
 impl GrpcMetricsLayer {
     /// Labels the methods of the services in `descriptor_sets` (encoded
-    /// `FileDescriptorSet`s) by name.
-    pub fn new(descriptor_sets: &[&[u8]]) -> GrpcMetricsLayer {
+    /// `FileDescriptorSet`s) by name; with `access_log`, also writes one
+    /// access-log line per call (target `kinserve::access`).
+    pub fn new(access_log: bool, descriptor_sets: &[&[u8]]) -> GrpcMetricsLayer {
         let mut methods = HashSet::new();
         for bytes in descriptor_sets {
             let Ok(set) = prost_types::FileDescriptorSet::decode(*bytes) else {
@@ -47,6 +49,7 @@ impl GrpcMetricsLayer {
         }
         GrpcMetricsLayer {
             methods: Arc::new(methods),
+            access_log,
         }
     }
 }
@@ -57,6 +60,7 @@ impl<S> Layer<S> for GrpcMetricsLayer {
         GrpcMetrics {
             inner,
             methods: self.methods.clone(),
+            access_log: self.access_log,
         }
     }
 }
@@ -66,6 +70,7 @@ impl<S> Layer<S> for GrpcMetricsLayer {
 pub struct GrpcMetrics<S> {
     inner: S,
     methods: Arc<HashSet<String>>,
+    access_log: bool,
 }
 
 type BoxFuture<T, E> = Pin<Box<dyn Future<Output = Result<T, E>> + Send>>;
@@ -93,6 +98,7 @@ where
             "other".to_string()
         };
         let start = Instant::now();
+        let access_log = self.access_log;
         let fut = self.inner.call(req);
         Box::pin(async move {
             let result = fut.await;
@@ -104,6 +110,16 @@ where
                     .and_then(|v| v.parse::<i32>().ok())
                     .unwrap_or(0);
                 let code = code_name(code);
+                if access_log {
+                    tracing::info!(
+                        target: "kinserve::access",
+                        protocol = "grpc",
+                        method = %method,
+                        code,
+                        duration_ms = start.elapsed().as_secs_f64() * 1e3,
+                        "call"
+                    );
+                }
                 metrics::counter!("kinserve_grpc_requests_total", "method" => method.clone(), "code" => code)
                     .increment(1);
                 metrics::histogram!("kinserve_grpc_request_duration_seconds", "method" => method)

@@ -65,6 +65,8 @@ pub struct GrpcSettings {
     pub request_timeout: Duration,
     /// A stream with no message from the client for this long is closed.
     pub stream_idle_timeout: Duration,
+    /// One access-log line per call (target `kinserve::access`).
+    pub access_log: bool,
 }
 
 /// The gRPC service over the shared [`Service`].
@@ -349,6 +351,7 @@ pub async fn serve(
     let reflection_v1alpha = v1alpha.build_v1alpha().map_err(std::io::Error::other)?;
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
+    let access_log = settings.access_log;
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
         settings: Arc::new(settings),
@@ -367,12 +370,15 @@ pub async fn serve(
         })
     });
     let health_on_stop = health.clone();
-    let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(&[
-        pb::FILE_DESCRIPTOR_SET,
-        tonic_health::pb::FILE_DESCRIPTOR_SET,
-        tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET,
-        tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
-    ]);
+    let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(
+        access_log,
+        &[
+            pb::FILE_DESCRIPTOR_SET,
+            tonic_health::pb::FILE_DESCRIPTOR_SET,
+            tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET,
+            tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
+        ],
+    );
     tonic::transport::Server::builder()
         .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(

@@ -69,6 +69,8 @@ pub struct RestSettings {
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
     pub cors_origins: Vec<String>,
+    /// One access-log line per request (target `kinserve::access`).
+    pub access_log: bool,
 }
 
 /// The parts of [`AppState`].
@@ -247,11 +249,30 @@ fn status_label(code: u16) -> SharedString {
 }
 
 /// Counts requests by route and status and records their latency.
-async fn record_metrics(req: Request, next: Next) -> Response {
+async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next) -> Response {
     let start = Instant::now();
     let route = route_label(req.extensions().get::<MatchedPath>());
     let method = method_label(req.method());
+    let request_id = access_log.then(|| {
+        req.headers()
+            .get("x-request-id")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_string()
+    });
     let resp = next.run(req).await;
+    if let Some(request_id) = request_id {
+        tracing::info!(
+            target: "kinserve::access",
+            protocol = "http",
+            method = %method,
+            route = %route,
+            status = resp.status().as_u16(),
+            duration_ms = start.elapsed().as_secs_f64() * 1e3,
+            request_id = %request_id,
+            "request"
+        );
+    }
     let status = status_label(resp.status().as_u16());
     metrics::counter!("kinserve_http_requests_total", "method" => method.clone(), "route" => route.clone(), "status" => status)
         .increment(1);
@@ -333,6 +354,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .route("/", get(playground::index))
         .route("/playground/{file}", get(playground::file));
     let cors = cors(&state.settings.cors_origins);
+    let access_log = state.settings.access_log;
     // validatorUrl "none": Swagger UI must not send the spec's URL to the public validator.
     let swagger = SwaggerUi::new("/docs")
         .url("/openapi.json", ApiDoc::openapi())
@@ -341,7 +363,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state)
-        .layer(middleware::from_fn(record_metrics))
+        .layer(middleware::from_fn_with_state(access_log, record_metrics))
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(
             TraceLayer::new_for_http().make_span_with(|req: &Request| {
