@@ -67,7 +67,7 @@ pub fn metrics_handle() -> PrometheusHandle {
 }
 
 /// Every metric family with its help text (the `# HELP` lines of `/metrics`).
-const FAMILIES: &[(&str, &str)] = &[
+pub const FAMILIES: &[(&str, &str)] = &[
     (
         "kinserve_http_requests_total",
         "HTTP requests answered, by method, route and status.",

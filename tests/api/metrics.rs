@@ -111,3 +111,36 @@ async fn every_front_door_is_measured_and_every_family_has_help() {
         "{text}"
     );
 }
+
+/// Every metric the Grafana dashboard (`deploy/grafana/kinserve.json`) queries
+/// is one of the families the server documents and exports (histogram
+/// suffixes stripped); the test above checks that they are exported.
+#[test]
+fn the_grafana_dashboard_queries_only_exported_metrics() {
+    let exported: BTreeSet<String> = kinserve::telemetry::FAMILIES
+        .iter()
+        .map(|(name, _)| name.to_string())
+        .collect();
+    let dashboard: serde_json::Value =
+        serde_json::from_str(include_str!("../../deploy/grafana/kinserve.json")).unwrap();
+    let mut queried = BTreeSet::new();
+    for panel in dashboard["panels"].as_array().unwrap() {
+        for target in panel["targets"].as_array().unwrap() {
+            let expr = target["expr"].as_str().unwrap();
+            for word in expr.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')) {
+                if word.starts_with("kinserve_") || word.starts_with("process_") {
+                    let family = ["_bucket", "_count", "_sum"]
+                        .iter()
+                        .fold(word, |w, s| w.strip_suffix(s).unwrap_or(w));
+                    queried.insert(family.to_string());
+                }
+            }
+        }
+    }
+    assert!(queried.len() >= 10, "{queried:?}");
+    let unknown: Vec<_> = queried.difference(&exported).collect();
+    assert!(
+        unknown.is_empty(),
+        "the dashboard queries unknown metrics: {unknown:?}"
+    );
+}
