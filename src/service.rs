@@ -162,6 +162,44 @@ impl Service {
             .collect()
     }
 
+    /// One page of the robot list (AIP-158): at most `page_size` robots
+    /// ([`DEFAULT_PAGE_SIZE`] when 0, [`MAX_PAGE_SIZE`] at most), sorted by name,
+    /// starting after the robot that `page_token` (from the previous page's
+    /// answer) names. The token of the next page is `None` on the last page.
+    pub fn list_page(
+        &self,
+        page_size: u32,
+        page_token: &str,
+    ) -> Result<(Vec<RobotSummary>, Option<String>)> {
+        let after = match page_token {
+            "" => None,
+            t => Some(decode_page_token(t).ok_or_else(|| {
+                Error::malformed_field(
+                    "page_token",
+                    "not a page token this server issued: pass next_page_token from the previous page unchanged",
+                )
+            })?),
+        };
+        let size = match page_size {
+            0 => DEFAULT_PAGE_SIZE,
+            n => (n as usize).min(MAX_PAGE_SIZE),
+        };
+        let all = self.list();
+        let start = after.map_or(0, |a| {
+            all.partition_point(|r| r.name.as_str() <= a.as_str())
+        });
+        let page: Vec<RobotSummary> = all.into_iter().skip(start).take(size + 1).collect();
+        let (page, next) = if page.len() > size {
+            let mut page = page;
+            page.truncate(size);
+            let next = page.last().map(|r| encode_page_token(&r.name));
+            (page, next)
+        } else {
+            (page, None)
+        };
+        Ok((page, next))
+    }
+
     /// The robot called `name`. An empty name is malformed input; an unknown
     /// one is [`Error::NotFound`] with the nearest existing names.
     pub fn robot(&self, name: &str) -> Result<Arc<Entry>> {
@@ -328,6 +366,30 @@ impl Service {
             .fk();
         Ok(out)
     }
+}
+
+/// Robots in a list page when the client does not say (AIP-158 `page_size` 0).
+pub const DEFAULT_PAGE_SIZE: usize = 100;
+/// Most robots in one list page; larger `page_size` values are lowered to it.
+pub const MAX_PAGE_SIZE: usize = 1000;
+
+/// A page token: `n.` and the hex of the last name of the previous page
+/// (opaque to clients; only this server's tokens decode).
+fn encode_page_token(last: &str) -> String {
+    let hex: String = last.bytes().map(|b| format!("{b:02x}")).collect();
+    format!("n.{hex}")
+}
+
+fn decode_page_token(token: &str) -> Option<String> {
+    let hex = token.strip_prefix("n.")?;
+    if hex.len() % 2 != 0 || hex.len() > 256 {
+        return None;
+    }
+    let bytes: Option<Vec<u8>> = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(hex.get(i..i + 2)?, 16).ok())
+        .collect();
+    String::from_utf8(bytes?).ok()
 }
 
 /// Robot names echoed in errors are cut to 64 characters (a 10 KB name is not echoed back).

@@ -9,5 +9,6 @@ mod hostile;
 mod logs;
 mod metrics;
 mod openapi;
+mod pagination;
 mod rest;
 mod ws;

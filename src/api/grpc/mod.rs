@@ -118,12 +118,18 @@ type FkStream = Pin<
 impl KinematicsService for GrpcService {
     async fn list_robots(
         &self,
-        _req: Request<pb::ListRobotsRequest>,
+        req: Request<pb::ListRobotsRequest>,
     ) -> Result<Response<pb::ListRobotsResponse>, Status> {
         let _permit = self.admit()?;
-        let robots = self
-            .service
-            .list()
+        let req = req.into_inner();
+        let size = u32::try_from(req.page_size).map_err(|_| {
+            Error::malformed_field(
+                "page_size",
+                "must not be negative (0 means the default, 100)",
+            )
+        })?;
+        let (page, next) = self.service.list_page(size, &req.page_token)?;
+        let robots = page
             .into_iter()
             .map(|s| pb::RobotSummary {
                 name: s.name,
@@ -133,7 +139,10 @@ impl KinematicsService for GrpcService {
                 source: convert::origin_to_pb(s.origin) as i32,
             })
             .collect();
-        Ok(Response::new(pb::ListRobotsResponse { robots }))
+        Ok(Response::new(pb::ListRobotsResponse {
+            robots,
+            next_page_token: next.unwrap_or_default(),
+        }))
     }
 
     async fn get_robot(

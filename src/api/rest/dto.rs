@@ -36,8 +36,22 @@ pub struct RobotSummaryDto {
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin"}]}))]
 pub struct RobotList {
-    /// Every robot, sorted by name.
+    /// One page of robots, sorted by name.
     pub robots: Vec<RobotSummaryDto>,
+    /// Pass as `page_token` for the next page; absent on the last page.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub next_page_token: Option<String>,
+}
+
+/// Query of `GET /v1/robots` (AIP-158 pagination).
+#[derive(Clone, Debug, Deserialize, utoipa::IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct ListParams {
+    /// Most robots to return: absent or 0 means 100; above 1000 means 1000.
+    pub page_size: Option<u32>,
+    /// `next_page_token` of the previous page; absent for the first page.
+    pub page_token: Option<String>,
 }
 
 /// `POST /v1/robots/{name}/fk`.

@@ -15,7 +15,7 @@ async fn list_robots_is_sorted_and_describes_builtins() {
     let app = spawn_app().await;
     let mut c = app.grpc_client().await;
     let robots = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner()
@@ -133,7 +133,7 @@ async fn register_replace_get_fk_and_delete_a_robot() {
     assert_eq!(got.robot.unwrap().links[0].a, Some(1.0));
 
     let list = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner();
@@ -278,7 +278,7 @@ async fn invalid_models_are_invalid_argument_with_field_paths() {
 
     // Nothing was stored.
     let list = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner();
@@ -323,7 +323,9 @@ async fn register_and_delete_need_the_bearer_token_when_one_is_set() {
     })
     .await
     .unwrap();
-    c.list_robots(pb::ListRobotsRequest {}).await.unwrap();
+    c.list_robots(pb::ListRobotsRequest::default())
+        .await
+        .unwrap();
     fk(&mut c, fk_request("guarded", &[0.0, 0.0], None))
         .await
         .unwrap();

@@ -369,7 +369,10 @@ async fn the_grpc_corpus_gets_documented_statuses_and_the_server_keeps_answering
     let stream_cases: Vec<&Value> = cases.iter().filter(|c| c["stream"] == true).collect();
     failures.extend(run_stream_cases(&mut c, &stream_cases).await);
     // Nothing was registered; the server still answers on the same channel.
-    let list = c.list_robots(pb::ListRobotsRequest {}).await.unwrap();
+    let list = c
+        .list_robots(pb::ListRobotsRequest::default())
+        .await
+        .unwrap();
     assert!(
         list.into_inner()
             .robots
