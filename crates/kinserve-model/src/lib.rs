@@ -16,12 +16,14 @@
 //! With the `openapi` feature the schema types also derive `utoipa::ToSchema`.
 
 mod base_tool;
+mod closed_form;
 mod error;
 mod joints;
 mod json;
 mod robot;
 mod spec;
 
+pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
 pub use error::{FieldViolation, ModelError, Result, summary};
 pub use joints::{JointBatch, JointVector};
 pub use json::{load_robot_file, load_robot_file_with, parse_json};
