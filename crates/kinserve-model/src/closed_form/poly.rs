@@ -160,13 +160,20 @@ impl Poly {
                 let Some(&k2) = index.get(&cand.partner) else {
                     continue;
                 };
-                if used.contains(&cand.partner) || cand.partner == *m1 || k2.signum() != k1.signum() * cand.partner_sign {
+                if used.contains(&cand.partner)
+                    || cand.partner == *m1
+                    || k2.signum() != k1.signum() * cand.partner_sign
+                {
                     continue;
                 }
                 let amount = k1.signum() * k1.abs().min(k2.abs());
                 used.insert(m1.clone());
                 used.insert(cand.partner.clone());
-                out.push(Rewrite { first: m1.clone(), amount, ..cand });
+                out.push(Rewrite {
+                    first: m1.clone(),
+                    amount,
+                    ..cand
+                });
                 break;
             }
         }
@@ -337,7 +344,10 @@ mod tests {
         q.simplify(&Groups::default());
         assert_eq!(q, Poly::constant(1));
         // Partial: 2 c1c2 − s1s2 = c12 + c1c2.
-        let mut r = c(&[1]).mul(&c(&[2])).mul(&Poly::constant(2)).add(&s(&[1]).mul(&s(&[2])).neg());
+        let mut r = c(&[1])
+            .mul(&c(&[2]))
+            .mul(&Poly::constant(2))
+            .add(&s(&[1]).mul(&s(&[2])).neg());
         r.simplify(&one_group(2));
         assert_eq!(r, c(&[1, 2]).add(&c(&[1]).mul(&c(&[2]))));
     }

@@ -47,7 +47,10 @@ impl Style {
                 .join("\n"),
             Format::Latex => {
                 let body: Vec<String> = rows.iter().map(|r| r.join(" & ")).collect();
-                format!("\\begin{{bmatrix}} {} \\end{{bmatrix}}", body.join(" \\\\ "))
+                format!(
+                    "\\begin{{bmatrix}} {} \\end{{bmatrix}}",
+                    body.join(" \\\\ ")
+                )
             }
             Format::MathMl => {
                 let body: String = rows
@@ -167,8 +170,14 @@ impl Style {
     fn indexed(&self, letter: &str, rows: &[u16]) -> String {
         let nums: Vec<String> = rows.iter().map(u16::to_string).collect();
         match self.format {
-            Format::Text => format!("{letter}{}", nums.join(if self.separated { "_" } else { "" })),
-            Format::Latex => format!("{letter}_{{{}}}", nums.join(if self.separated { "," } else { "" })),
+            Format::Text => format!(
+                "{letter}{}",
+                nums.join(if self.separated { "_" } else { "" })
+            ),
+            Format::Latex => format!(
+                "{letter}_{{{}}}",
+                nums.join(if self.separated { "," } else { "" })
+            ),
             Format::MathMl => {
                 let sub = if self.separated && nums.len() > 1 {
                     let inner: Vec<String> = nums.iter().map(|n| format!("<mn>{n}</mn>")).collect();
