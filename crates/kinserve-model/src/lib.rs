@@ -22,6 +22,7 @@ mod joints;
 mod json;
 mod robot;
 mod spec;
+mod urdf;
 
 pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
 pub use error::{FieldViolation, ModelError, Result, summary};
@@ -32,6 +33,7 @@ pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
     TransformSpec,
 };
+pub use urdf::to_urdf;
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
 pub const RIGID_TOLERANCE: f64 = 1e-6;
