@@ -1,4 +1,5 @@
-//! The `kinserve` command line: `serve` (default), `validate`, `fk`, `healthcheck`.
+//! The `kinserve` command line: `serve` (default), `validate`, `fk`,
+//! `closed-form`, `urdf`, `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -7,9 +8,11 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
-use crate::config::{Cli, Command, FkArgs, ServeConfig};
+use crate::config::{
+    Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, ModelArgs, ServeConfig,
+};
 use crate::error::Error;
-use crate::model::{AngleUnit, FkOptions, load_robot_file};
+use crate::model::{AngleUnit, ClosedForm, FkOptions, Robot, load_robot_file, to_urdf};
 
 /// Runs the command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
@@ -18,6 +21,8 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Serve(c)) => serve(*c),
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
+        Some(Command::ClosedForm(args)) => closed_form(&args),
+        Some(Command::Urdf(args)) => urdf(&args),
         Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
     }
 }
@@ -147,6 +152,77 @@ fn fk(args: &FkArgs) -> ExitCode {
             print_error("--joints", &e.into());
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The robot `args` names (a built-in by name, or a file); errors printed.
+fn load_model(args: &ModelArgs) -> Result<Robot, ExitCode> {
+    let path = match (&args.robot, &args.model) {
+        (Some(name), _) => {
+            if let Err(m) = crate::model::validate_name(name) {
+                eprintln!("--robot: {m}");
+                return Err(ExitCode::FAILURE);
+            }
+            let path = args.robots_dir.join(format!("{name}.json"));
+            if !path.exists() {
+                eprintln!("no robot '{name}' in {}", args.robots_dir.display());
+                return Err(ExitCode::FAILURE);
+            }
+            path
+        }
+        (None, Some(p)) => p.clone(),
+        (None, None) => {
+            eprintln!("give --robot NAME or --model FILE");
+            return Err(ExitCode::FAILURE);
+        }
+    };
+    load_robot_file(&path).map_err(|e| {
+        print_error(&path.display().to_string(), &e.into());
+        ExitCode::FAILURE
+    })
+}
+
+fn closed_form(args: &ClosedFormArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let cf = match ClosedForm::of(&robot) {
+        Ok(cf) => cf,
+        Err(e) => {
+            print_error(robot.name(), &e.into());
+            return ExitCode::FAILURE;
+        }
+    };
+    let out = match args.format {
+        ClosedFormFormat::Json => match serde_json::to_string_pretty(&cf) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("cannot print the result: {e}");
+                return ExitCode::FAILURE;
+            }
+        },
+        ClosedFormFormat::Text => cf
+            .transform
+            .text
+            .iter()
+            .map(|r| r.join(" | "))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        ClosedFormFormat::Latex => cf.transform.latex,
+        ClosedFormFormat::Mathml => cf.transform.mathml,
+    };
+    println!("{out}");
+    ExitCode::SUCCESS
+}
+
+fn urdf(args: &ModelArgs) -> ExitCode {
+    match load_model(args) {
+        Ok(robot) => {
+            print!("{}", to_urdf(&robot));
+            ExitCode::SUCCESS
+        }
+        Err(code) => code,
     }
 }
 

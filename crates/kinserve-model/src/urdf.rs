@@ -258,7 +258,9 @@ fn visual_radius(robot: &Robot, scale: f64) -> f64 {
     (size / 40.0).clamp(0.005, 0.05)
 }
 
+/// Three numbers; `-0` printed as `0`.
 fn triple(v: [f64; 3]) -> String {
+    let v = v.map(|x| x + 0.0);
     format!("{} {} {}", v[0], v[1], v[2])
 }
 
