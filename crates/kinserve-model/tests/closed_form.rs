@@ -128,7 +128,7 @@ impl Reader<'_> {
         let tok = std::str::from_utf8(&self.s[start..self.i]).unwrap();
         assert!(!tok.is_empty(), "expected a factor at {start}");
         match tok.parse::<f64>() {
-            Ok(k) if k == 0.0 => Poly::new(),
+            Ok(0.0) => Poly::new(),
             Ok(k) => Poly::from([(Vec::new(), k)]),
             Err(_) => Poly::from([(vec![tok.to_string()], 1.0)]),
         }
@@ -217,10 +217,8 @@ fn reach(robot: &Robot) -> f64 {
     let strokes: f64 = robot
         .joints()
         .iter()
-        .filter_map(|j| {
-            (j.kind == JointKind::Prismatic)
-                .then(|| j.limits.map_or(1.0, |(lo, hi)| lo.abs().max(hi.abs())))
-        })
+        .filter(|j| j.kind == JointKind::Prismatic)
+        .map(|j| j.limits.map_or(1.0, |(lo, hi)| lo.abs().max(hi.abs())))
         .sum();
     (rows + strokes).max(1.0)
 }
