@@ -4,7 +4,7 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::api::grpc::GrpcSettings;
 use crate::api::rest::RestSettings;
@@ -33,6 +33,11 @@ pub enum Command {
     },
     /// Compute FK once and print it as JSON (the REST API's `fk` response).
     Fk(FkArgs),
+    /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
+    /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
+    ClosedForm(ClosedFormArgs),
+    /// Print a robot as URDF (metres, radians; the REST API's `urdf` response).
+    Urdf(ModelArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
     /// Used as the container HEALTHCHECK (the image has no curl).
     Healthcheck {
@@ -82,6 +87,45 @@ pub struct FkArgs {
 }
 
 pub use crate::telemetry::LogFormat;
+
+/// Which robot a command works on: a built-in by name or a model file.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
+pub struct ModelArgs {
+    /// A built-in robot by name (or one from --robots-dir).
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// A robot model file (JSON).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// A directory of robot files (JSON) that add to or override the built-in robots.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
+}
+
+/// Arguments of `kinserve closed-form`.
+#[derive(Debug, Args)]
+pub struct ClosedFormArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// What to print: the whole answer as JSON, or ⁰Tₙ as text rows, LaTeX or MathML.
+    #[arg(long, value_enum, default_value_t = ClosedFormFormat::Json)]
+    pub format: ClosedFormFormat,
+}
+
+/// Output of `kinserve closed-form`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ClosedFormFormat {
+    /// The REST API's JSON answer.
+    Json,
+    /// ⁰Tₙ, one row per line, entries separated by ` | `.
+    Text,
+    /// ⁰Tₙ as a LaTeX bmatrix.
+    Latex,
+    /// ⁰Tₙ as presentation MathML.
+    Mathml,
+}
 
 /// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.
 pub fn parse_duration(s: &str) -> Result<Duration, String> {

@@ -8,7 +8,7 @@ use subtle::ConstantTimeEq;
 
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
-use crate::model::{FkOptions, LengthUnit, ModelLimits, Robot, RobotSpec};
+use crate::model::{ClosedForm, FkOptions, LengthUnit, ModelLimits, Robot, RobotSpec};
 use crate::registry::{Entry, Origin, PutMode, Registry};
 
 /// Limits the service enforces on requests.
@@ -241,6 +241,19 @@ impl Service {
             .collect();
         scored.sort();
         scored.into_iter().take(3).map(|(_, n)| n).collect()
+    }
+
+    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]);
+    /// invalid input when it is too long to print.
+    pub fn closed_form(&self, name: &str) -> Result<ClosedForm> {
+        let entry = self.robot(name)?;
+        Ok(ClosedForm::of(&entry.robot)?)
+    }
+
+    /// Robot `name` as a URDF document (metres, radians).
+    pub fn urdf(&self, name: &str) -> Result<String> {
+        let entry = self.robot(name)?;
+        Ok(crate::model::to_urdf(&entry.robot))
     }
 
     /// Validates and registers a model, durably. `Ok(true)` if created,

@@ -16,12 +16,15 @@
 //! With the `openapi` feature the schema types also derive `utoipa::ToSchema`.
 
 mod base_tool;
+mod closed_form;
 mod error;
 mod joints;
 mod json;
 mod robot;
 mod spec;
+mod urdf;
 
+pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
 pub use error::{FieldViolation, ModelError, Result, summary};
 pub use joints::{JointBatch, JointVector};
 pub use json::{load_robot_file, load_robot_file_with, parse_json};
@@ -30,6 +33,7 @@ pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
     TransformSpec,
 };
+pub use urdf::to_urdf;
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
 pub const RIGID_TOLERANCE: f64 = 1e-6;

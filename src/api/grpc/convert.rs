@@ -7,6 +7,7 @@ use crate::model::{
     AngleUnit, ConventionSpec, FkOptions, JointType, LengthUnit, LinkSpec, QuaternionSpec,
     RobotSpec, TransformSpec,
 };
+use crate::model::{ClosedForm, SymbolicMatrix};
 use crate::registry::Origin;
 
 /// Proto → model robot. Field paths match REST (`links[3].joint`, `base.matrix`).
@@ -302,5 +303,42 @@ pub fn pose_to_pb(t: &Transform) -> pb::Pose {
         orientation: Some(pb::Quaternion { w, x, y, z }),
         rpy: Some(pb::Rpy { roll, pitch, yaw }),
         quaternion: Some(pb::Quaternion { w, x, y, z }),
+    }
+}
+
+/// A closed form as its protobuf message.
+pub fn closed_form_to_pb(cf: ClosedForm) -> pb::GetClosedFormResponse {
+    let matrix = |m: SymbolicMatrix| pb::SymbolicMatrix {
+        text: m.text.into_iter().flatten().collect(),
+        latex: m.latex,
+        mathml: m.mathml,
+    };
+    let numbers = |m: [[f64; 4]; 4]| pb::Matrix4 {
+        values: m.iter().flatten().copied().collect(),
+    };
+    pb::GetClosedFormResponse {
+        robot: cf.robot,
+        convention: convention_to_pb(cf.convention) as i32,
+        length_unit: length_unit_to_pb(cf.length_unit) as i32,
+        variables: cf
+            .variables
+            .into_iter()
+            .map(|v| pb::JointVariable {
+                name: v.name,
+                row: u32::try_from(v.row).unwrap_or(u32::MAX),
+                joint: v.joint,
+                kind: match v.kind {
+                    JointType::Revolute => pb::JointType::Revolute,
+                    JointType::Prismatic => pb::JointType::Prismatic,
+                    JointType::Fixed => pb::JointType::Fixed,
+                } as i32,
+                offset: v.offset,
+            })
+            .collect(),
+        symbols: cf.symbols.into_iter().collect(),
+        link_transforms: cf.link_transforms.into_iter().map(matrix).collect(),
+        transform: Some(matrix(cf.transform)),
+        base: Some(numbers(cf.base)),
+        tool: cf.tool.map(numbers),
     }
 }

@@ -315,6 +315,25 @@ impl KinematicsService for GrpcService {
         });
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
+
+    async fn get_closed_form(
+        &self,
+        req: Request<pb::GetClosedFormRequest>,
+    ) -> Result<Response<pb::GetClosedFormResponse>, Status> {
+        let _permit = self.admit()?;
+        let cf = self.service.closed_form(&req.get_ref().robot)?;
+        Ok(Response::new(convert::closed_form_to_pb(cf)))
+    }
+
+    async fn get_urdf(
+        &self,
+        req: Request<pb::GetUrdfRequest>,
+    ) -> Result<Response<pb::GetUrdfResponse>, Status> {
+        let _permit = self.admit()?;
+        let robot = req.into_inner().robot;
+        let urdf = self.service.urdf(&robot)?;
+        Ok(Response::new(pb::GetUrdfResponse { robot, urdf }))
+    }
 }
 
 /// The answer to a request whose handler panicked: INTERNAL (trailers-only),

@@ -1,6 +1,7 @@
 //! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
 
 mod dto;
+mod export;
 mod extract;
 mod handlers;
 mod openapi;
@@ -30,6 +31,7 @@ use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
 pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
+pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
 
 use openapi::Complete;
@@ -106,7 +108,8 @@ impl Modify for SecurityAddon {
     paths(
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, ws::stream, metrics_text
+        handlers::fk, handlers::fk_batch, ws::stream, metrics_text,
+        export::closed_form, export::urdf
     ),
     components(schemas(WsRequest, dto::WsReply)),
     modifiers(&SecurityAddon, &Complete)
@@ -193,6 +196,8 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/fk",
         "/v1/robots/{name}/fk/batch",
         "/v1/robots/{name}/fk/stream",
+        "/v1/robots/{name}/closed-form",
+        "/v1/robots/{name}/urdf",
         "/v1/robots/{name}",
         "/v1/robots",
         "/healthz",
@@ -344,8 +349,12 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             axum::routing::post(handlers::fk_batch),
         )
         .route("/v1/robots/{name}/fk/stream", get(ws::stream));
+    let export = Router::new()
+        .route("/v1/robots/{name}/closed-form", get(export::closed_form))
+        .route("/v1/robots/{name}/urdf", get(export::urdf));
     let api = admin
         .merge(fk)
+        .merge(export)
         .merge(extra)
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route("/healthz", get(handlers::healthz))

@@ -169,6 +169,8 @@ const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/robots/{name}/fk", &["post"]),
     ("/v1/robots/{name}/fk/batch", &["post"]),
     ("/v1/robots/{name}/fk/stream", &["get"]),
+    ("/v1/robots/{name}/closed-form", &["get"]),
+    ("/v1/robots/{name}/urdf", &["get"]),
 ];
 
 fn collect_refs(v: &Value, out: &mut Vec<String>) {
@@ -232,6 +234,9 @@ async fn openapi_covers_every_route_and_schema() {
         "ProblemField",
         "WsRequest",
         "WsReply",
+        "ClosedForm",
+        "SymbolicMatrix",
+        "JointVariable",
     ] {
         assert!(schemas.contains_key(s), "schema {s} missing");
     }
