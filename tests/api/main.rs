@@ -4,6 +4,7 @@ mod closed_form;
 mod contract;
 mod crash;
 mod errors;
+mod etags;
 mod grpc;
 mod helpers;
 mod hostile;

@@ -22,6 +22,8 @@ pub fn code_of(e: &Error) -> Code {
         Error::Overloaded => Code::ResourceExhausted,
         Error::Unavailable { .. } => Code::Unavailable,
         Error::Storage { .. } => Code::Unavailable,
+        Error::PreconditionFailed { .. } => Code::FailedPrecondition,
+        Error::StoreUnavailable { .. } => Code::Unavailable,
         Error::Internal { .. } => Code::Internal,
     }
 }

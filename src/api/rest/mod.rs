@@ -240,6 +240,7 @@ fn status_label(code: u16) -> SharedString {
         (404, "404"),
         (405, "405"),
         (409, "409"),
+        (412, "412"),
         (413, "413"),
         (415, "415"),
         (422, "422"),
@@ -302,10 +303,14 @@ fn cors(origins: &[String]) -> CorsLayer {
         .allow_headers([
             header::CONTENT_TYPE,
             header::AUTHORIZATION,
+            header::IF_MATCH,
+            header::IF_NONE_MATCH,
             header::HeaderName::from_static("x-request-id"),
         ])
         .expose_headers([
             header::LOCATION,
+            header::ETAG,
+            header::LAST_MODIFIED,
             header::HeaderName::from_static("x-request-id"),
             header::RETRY_AFTER,
         ]);
