@@ -4,6 +4,7 @@
 //! change durable.
 
 pub mod builtin;
+pub mod postgres;
 mod store;
 pub mod version;
 
@@ -204,6 +205,13 @@ impl Registry {
     /// that is invalid here (e.g. over this replica's limits), or whose name
     /// is a built-in's, is an error and changes nothing.
     pub fn apply(&self, change: Change, limits: &ModelLimits) -> Result<bool> {
+        let (name, revision) = match &change {
+            Change::Put(r) => (r.spec.name.as_str(), r.version.revision),
+            Change::Deleted { name, revision } => (name.as_str(), *revision),
+        };
+        if self.known_revision(name).is_some_and(|k| k >= revision) {
+            return Ok(false);
+        }
         let (name, revision, entry) = match change {
             Change::Put(r) => {
                 let robot = Robot::from_spec(r.spec, limits)?;
@@ -252,6 +260,15 @@ impl Registry {
         }
         self.map.store(Arc::new(map));
         Ok(true)
+    }
+
+    /// The revision the snapshot holds for `name` (a robot's or a deletion's).
+    fn known_revision(&self, name: &str) -> Option<u64> {
+        let tombstones = self.lock();
+        match self.map.load().get(name) {
+            Some(e) => e.revision(),
+            None => tombstones.get(name).copied(),
+        }
     }
 
     fn lock(&self) -> MutexGuard<'_, Tombstones> {

@@ -12,5 +12,7 @@ mod logs;
 mod metrics;
 mod openapi;
 mod pagination;
+mod replicas;
+mod replicas_outage;
 mod rest;
 mod ws;

@@ -6,10 +6,10 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
-use super::dto::ListParams;
 use super::dto::{
     FkBatchRequest, FkBatchResponse, FkRequest, PosesSer, RobotList, RobotSummaryDto,
 };
+use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::{FkOutput, Pose};
@@ -35,13 +35,23 @@ pub async fn healthz() -> &'static str {
     "ok"
 }
 
-/// Readiness: 200 once robots are loaded, 503 while starting or shutting down.
+/// Readiness: 200 once robots are loaded, 503 while starting or shutting
+/// down. The body says how the registry store is doing; a store that is down
+/// leaves the server ready (FK, list and get are served from the snapshot).
 #[utoipa::path(get, path = "/readyz", tag = "health", responses(
-    (status = 200, description = "Ready"),
+    (status = 200, description = "Ready; the registry store's state", body = Readiness),
     (status = 503, description = "Starting or shutting down", body = Problem, content_type = "application/problem+json")))]
-pub async fn readyz(State(state): State<AppState>) -> ApiResult<&'static str> {
+pub async fn readyz(State(state): State<AppState>) -> ApiResult<Json<Readiness>> {
     if state.service.is_ready() {
-        Ok("ready")
+        let health = state.service.registry().store_health();
+        Ok(Json(Readiness {
+            status: "ready".into(),
+            store: StoreState {
+                kind: health.kind.into(),
+                state: if health.up { "up" } else { "down" }.into(),
+                snapshot_age_seconds: health.snapshot_age.as_secs_f64(),
+            },
+        }))
     } else {
         Err(Error::Unavailable {
             detail: "starting or shutting down".into(),

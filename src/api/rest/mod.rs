@@ -123,6 +123,8 @@ pub struct ApiDoc;
     example = "# HELP kinserve_robots Robots in the registry, by source.\n# TYPE kinserve_robots gauge\nkinserve_robots{source=\"builtin\"} 19\n")))]
 async fn metrics_text(State(state): State<AppState>) -> Response {
     crate::telemetry::update_process_metrics();
+    let store = state.service.registry().store_health();
+    crate::telemetry::record_store_health(store.kind, store.up, store.snapshot_age);
     (
         [(
             header::CONTENT_TYPE,
