@@ -97,7 +97,7 @@ impl Entry {
 #[derive(Clone, Debug)]
 pub enum Change {
     /// Created or replaced.
-    Put(Record),
+    Put(Box<Record>),
     /// Deleted at `revision`.
     Deleted {
         /// The robot name.
@@ -192,7 +192,7 @@ impl Registry {
     pub fn load_stored(&self, limits: &ModelLimits) -> LoadReport {
         let mut report = LoadReport::default();
         for (label, record) in self.store.load_all() {
-            match record.and_then(|r| self.apply(Change::Put(r), limits)) {
+            match record.and_then(|r| self.apply(Change::Put(Box::new(r)), limits)) {
                 Ok(_) => report.loaded += 1,
                 Err(e) => report.skipped.push((label, e)),
             }
@@ -214,6 +214,7 @@ impl Registry {
         }
         let (name, revision, entry) = match change {
             Change::Put(r) => {
+                let r = *r;
                 let robot = Robot::from_spec(r.spec, limits)?;
                 let name = robot.name().to_string();
                 let entry = Arc::new(Entry::registered(robot, r.version));

@@ -1,6 +1,6 @@
 //! The PostgreSQL store: registered robots in one table shared by every
 //! replica (`--database-url`). Owns the connection settings (the password
-//! never leaves them), the pool, the schema ([`schema`]), conditional writes
+//! never leaves them), the pool, the schema (module `schema`), conditional writes
 //! (the row is locked, checked and changed in one transaction that also sends
 //! the NOTIFY, committed before the write is acknowledged) and the link state
 //! the sync task ([`sync`]) keeps. Must not depend on the registry's snapshot,
@@ -367,10 +367,10 @@ pub(crate) fn change_of(row: &Row) -> Result<Change> {
             format!("stored model '{}' is in the row of '{name}'", spec.name),
         ));
     }
-    Ok(Change::Put(Record {
+    Ok(Change::Put(Box::new(Record {
         spec,
         version: Version { revision, updated },
-    }))
+    })))
 }
 
 impl Store for PgStore {
@@ -388,7 +388,7 @@ impl Store for PgStore {
                         .try_get::<_, String>(0)
                         .map_or_else(|_| "database row".into(), |n| format!("database row '{n}'"));
                     match change_of(row) {
-                        Ok(Change::Put(r)) => Some((label, Ok(r))),
+                        Ok(Change::Put(r)) => Some((label, Ok(*r))),
                         Ok(Change::Deleted { .. }) => None,
                         Err(e) => Some((label, Err(e))),
                     }

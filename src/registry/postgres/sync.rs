@@ -132,7 +132,7 @@ impl Running {
     /// Reads every row and applies it.
     async fn resync(&self, client: &Client) -> Result<(), String> {
         let rows = timed(client.query(SELECT_ALL, &[])).await?;
-        let changes = rows.iter().filter_map(|r| read(r)).collect();
+        let changes = rows.iter().filter_map(read).collect();
         (self.apply)(changes, "resync");
         self.syncer.link.mark_synced();
         Ok(())
