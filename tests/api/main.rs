@@ -13,6 +13,7 @@ mod metrics;
 mod openapi;
 mod pagination;
 mod replicas;
+mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod ws;
