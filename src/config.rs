@@ -188,6 +188,9 @@ pub struct ServeConfig {
     /// Most configurations in one batch request.
     #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
     pub max_batch: usize,
+    /// Most registered robots (built-ins not counted); registering one more is 507.
+    #[arg(long, env = "KINSERVE_MAX_ROBOTS", default_value_t = 1000)]
+    pub max_robots: usize,
     /// Most movable joints in a model.
     #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS)]
     pub max_joints: usize,
@@ -229,6 +232,7 @@ impl std::fmt::Debug for ServeConfig {
             log_format,
             access_log,
             max_batch,
+            max_robots,
             max_joints,
             max_links,
             max_body_bytes,
@@ -249,6 +253,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("log_format", log_format)
             .field("access_log", access_log)
             .field("max_batch", max_batch)
+            .field("max_robots", max_robots)
             .field("max_joints", max_joints)
             .field("max_links", max_links)
             .field("max_body_bytes", max_body_bytes)
@@ -289,6 +294,7 @@ impl ServeConfig {
             log_format: LogFormat::Human,
             access_log: true,
             max_batch: 10_000,
+            max_robots: 1000,
             max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
             max_links: ModelLimits::DEFAULT_MAX_LINKS,
             max_body_bytes: 1 << 20,

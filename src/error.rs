@@ -52,6 +52,20 @@ pub enum Error {
         /// The built-in robot's name.
         name: String,
     },
+    /// Refused by policy whatever the token, e.g. a registry write from a web
+    /// page of another origin (HTTP 403, gRPC PERMISSION_DENIED).
+    #[error("forbidden: {detail}")]
+    Forbidden {
+        /// Why, and how to allow it.
+        detail: String,
+    },
+    /// The registry holds as many registered robots as it may (HTTP 507,
+    /// gRPC RESOURCE_EXHAUSTED).
+    #[error("registry full: {detail}")]
+    Full {
+        /// The limit and how to make room.
+        detail: String,
+    },
     /// Missing or wrong bearer token (HTTP 401, gRPC UNAUTHENTICATED).
     #[error("missing or invalid bearer token")]
     Unauthenticated,

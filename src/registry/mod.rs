@@ -75,6 +75,8 @@ pub struct Registry {
     map: ArcSwap<Map>,
     writer: Mutex<()>,
     store: Box<dyn Store>,
+    /// Most registered (not built-in) robots; a new one beyond is refused.
+    max_registered: usize,
 }
 
 impl std::fmt::Debug for Registry {
@@ -101,7 +103,15 @@ impl Registry {
             map: ArcSwap::from_pointee(Map::new()),
             writer: Mutex::new(()),
             store,
+            max_registered: usize::MAX,
         }
+    }
+
+    /// The same registry, refusing a new registered robot once `max` are held
+    /// ([`Error::Full`]); replacing one is always allowed.
+    pub fn with_max_registered(mut self, max: usize) -> Registry {
+        self.max_registered = max;
+        self
     }
 
     /// Loads the built-in robots, read-only: the ones embedded in the binary,
@@ -195,6 +205,20 @@ impl Registry {
             Some(_) => false,
             None => true,
         };
+        if created {
+            let registered = current
+                .values()
+                .filter(|e| e.origin == Origin::Registered)
+                .count();
+            if registered >= self.max_registered {
+                return Err(Error::Full {
+                    detail: format!(
+                        "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
+                        self.max_registered
+                    ),
+                });
+            }
+        }
         timed_write("put", || self.store.save(robot.spec()))?;
         let mut map = Map::clone(&current);
         map.insert(name, Arc::new(Entry::new(robot, Origin::Registered)));

@@ -12,4 +12,5 @@ mod metrics;
 mod openapi;
 mod pagination;
 mod rest;
+mod secure_defaults;
 mod ws;

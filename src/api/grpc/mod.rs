@@ -79,8 +79,17 @@ pub struct GrpcService {
 }
 
 /// The `authorization` metadata value of a request, if readable.
-fn authorization<T>(req: &Request<T>) -> Option<&str> {
-    req.metadata().get("authorization")?.to_str().ok()
+/// Two or more values are malformed: which one counts would be a guess.
+fn authorization<T>(req: &Request<T>) -> Result<Option<&str>, Error> {
+    let mut all = req.metadata().get_all("authorization").iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one authorization metadata value, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
 }
 
 impl GrpcService {
@@ -161,7 +170,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::RegisterRobotRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         let req = req.into_inner();
         let robot = req
@@ -186,7 +195,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::DeleteRobotRequest>,
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         self.service.delete(&req.get_ref().name).await?;
         Ok(Response::new(pb::DeleteRobotResponse {}))

@@ -159,16 +159,65 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
         *req.method(),
         Method::POST | Method::PUT | Method::DELETE | Method::PATCH
     );
-    if mutating
-        && let Err(e) = state.service.authorize_header(
-            req.headers()
-                .get(header::AUTHORIZATION)
-                .and_then(|v| v.to_str().ok()),
-        )
+    if !mutating {
+        return next.run(req).await;
+    }
+    let unread = has_body(req.headers());
+    if let Err(e) = check_origin(req.headers(), &state.settings.cors_origins, true)
+        .and_then(|()| authorization(req.headers()))
+        .and_then(|token| state.service.authorize_header(token))
     {
-        return refuse_unread(has_body(req.headers()), ApiError(e).into_response());
+        return refuse_unread(unread, ApiError(e).into_response());
     }
     next.run(req).await
+}
+
+/// The one `Authorization` header of a request (two or more are malformed:
+/// which one counts would be a guess).
+fn authorization(headers: &header::HeaderMap) -> Result<Option<&str>, Error> {
+    let mut all = headers.get_all(header::AUTHORIZATION).iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one Authorization header, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
+}
+
+/// Secure by default: a browser request from another origin (its `Origin`
+/// header is neither this server nor one of `--cors-origin`) may not write
+/// to the registry (`write`), and, once `--cors-origin` is set, may not open
+/// a WebSocket either. Requests without `Origin` (non-browser clients) pass.
+pub(crate) fn check_origin(
+    headers: &header::HeaderMap,
+    allowed: &[String],
+    write: bool,
+) -> Result<(), Error> {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else {
+        return Ok(());
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let same = origin
+        .split_once("://")
+        .is_some_and(|(_, rest)| !host.is_empty() && rest == host);
+    if same || allowed.iter().any(|a| a == origin) || (!write && allowed.is_empty()) {
+        return Ok(());
+    }
+    let what = if write {
+        "registry writes"
+    } else {
+        "WebSocket streams"
+    };
+    Err(Error::Forbidden {
+        detail: format!(
+            "{what} from the web origin '{origin}' are refused: start the server with --cors-origin {origin} to allow it"
+        ),
+    })
 }
 
 /// Admission control and request timeout: past the concurrency limit a request
@@ -310,7 +359,11 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::RETRY_AFTER,
         ]);
     if origins.is_empty() {
-        layer.allow_origin(Any)
+        // Any web page may read and compute FK; registry writes (PUT, DELETE,
+        // and POST /v1/robots, refused by `check_origin`) need --cors-origin.
+        layer
+            .allow_origin(Any)
+            .allow_methods([Method::GET, Method::POST, Method::OPTIONS])
     } else {
         let origins: Vec<HeaderValue> = origins
             .iter()

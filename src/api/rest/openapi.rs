@@ -95,6 +95,9 @@ pub fn describe(code: &str) -> &'static str {
             "Malformed request: the body cannot be read into the request's schema (not JSON, wrong type, unknown or missing field, unknown enum value) or the name is empty."
         }
         "401" => "Missing or wrong bearer token (only when the server has an API token).",
+        "403" => {
+            "Forbidden: a registry write (or, with --cors-origin set, a WebSocket) from a web page of an origin not allowed by --cors-origin."
+        }
         "404" => "No robot of that name (the nearest names are suggested) or no such route.",
         "409" => "Conflict: the name is taken, or the robot is built in and read-only.",
         "413" => "Too large: the body or the batch is over its limit.",
@@ -105,7 +108,9 @@ pub fn describe(code: &str) -> &'static str {
         }
         "500" => "A bug: the handler failed; the server goes on.",
         "503" => "Overloaded (retry after `Retry-After`), timed out, starting or shutting down.",
-        "507" => "Storage failure: the robot could not be persisted; nothing changed.",
+        "507" => {
+            "Storage failure (nothing changed), or the registry holds --max-robots registered robots."
+        }
         _ => "See the status code.",
     }
 }
@@ -115,6 +120,9 @@ fn problem_example(code: &str) -> Option<Value> {
     let e = match code {
         "400" => Error::malformed_field("joints[1]", "invalid type: string \"x\", expected f64"),
         "401" => Error::Unauthenticated,
+        "403" => Error::Forbidden {
+            detail: "registry writes from the web origin 'https://stranger.example' are refused: start the server with --cors-origin https://stranger.example to allow it".into(),
+        },
         "404" => Error::NotFound {
             name: "Puma-560".into(),
             suggestions: vec!["puma560".into()],

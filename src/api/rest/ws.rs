@@ -26,13 +26,16 @@ const GOING_AWAY: u16 = 1001;
     responses((status = 101, description = "WebSocket upgrade; messages are WsRequest, replies WsReply"),
         (status = 400, description = "Bad path or not a WebSocket handshake", body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 403, description = "The page's origin is not among --cors-origin (only when that is set)", body = Problem, content_type = "application/problem+json"),
         (status = 426, description = "The connection cannot be upgraded", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    headers: axum::http::HeaderMap,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
+    super::check_origin(&headers, &state.settings.cors_origins, false)?;
     state.service.robot(&name)?;
     // A request that is not a valid WebSocket handshake gets a problem, not axum's plain text.
     let ws = match ws {
