@@ -10,14 +10,23 @@
 pub enum Kernel {
     /// Plain Rust, no target features beyond the baseline (SSE2 on x86_64), no FMA.
     Portable,
-    /// AVX2 with fused multiply-add (x86_64).
+    /// AVX2 with fused multiply-add (x86_64): 4 doubles per vector.
     Avx2Fma,
+    /// AVX-512 F/VL/DQ with AVX2 and FMA (x86_64): 8 doubles per vector, so one
+    /// vector holds a batch block of 8 poses or the sines of 8 joints.
+    Avx512,
 }
 
 impl Kernel {
+    /// Every kernel, narrowest first.
+    pub const ALL: [Kernel; 3] = [Kernel::Portable, Kernel::Avx2Fma, Kernel::Avx512];
+
     /// The widest kernel this CPU supports (detected at run time, cached by std).
+    #[inline]
     pub fn best() -> Kernel {
-        if Kernel::Avx2Fma.is_supported() {
+        if Kernel::Avx512.is_supported() {
+            Kernel::Avx512
+        } else if Kernel::Avx2Fma.is_supported() {
             Kernel::Avx2Fma
         } else {
             Kernel::Portable
@@ -25,22 +34,26 @@ impl Kernel {
     }
 
     /// Whether this CPU can run the kernel.
+    #[inline]
     pub fn is_supported(self) -> bool {
         match self {
             Kernel::Portable => true,
             Kernel::Avx2Fma => avx2_fma_detected(),
+            Kernel::Avx512 => avx512_detected(),
         }
     }
 
-    /// Short name (`portable`, `avx2+fma`), as reported by benchmarks.
+    /// Short name (`portable`, `avx2+fma`, `avx512`), as reported by benchmarks.
     pub fn name(self) -> &'static str {
         match self {
             Kernel::Portable => "portable",
             Kernel::Avx2Fma => "avx2+fma",
+            Kernel::Avx512 => "avx512",
         }
     }
 
     /// `self` if the CPU supports it, else [`Kernel::Portable`].
+    #[inline]
     pub(crate) fn or_portable(self) -> Kernel {
         if self.is_supported() {
             self
@@ -51,10 +64,27 @@ impl Kernel {
 }
 
 /// Whether this CPU has AVX2 and FMA.
+#[inline]
 fn avx2_fma_detected() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether this CPU has AVX-512 F, VL and DQ as well as AVX2 and FMA.
+#[inline]
+fn avx512_detected() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        avx2_fma_detected()
+            && std::is_x86_feature_detected!("avx512f")
+            && std::is_x86_feature_detected!("avx512vl")
+            && std::is_x86_feature_detected!("avx512dq")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

@@ -1,0 +1,303 @@
+//! The evaluators of a compiled [`Program`] — single pose, single pose with every
+//! frame, batch — and their instantiation per [`Kernel`] (`#[target_feature]`
+//! copies of the same generic code, picked at run time).
+//!
+//! - Single pose: the joint angles of up to 8 joints and their sines and cosines
+//!   are computed together as whole vectors ([`joint_values`]), then one
+//!   [`step::apply`] per joint on a column-major 4×4 (each column one 4-wide
+//!   vector).
+//! - Frames: the same, emitting each DH row's frame from the state (precompiled
+//!   [`FrameOffset`]s say how).
+//! - Batch: blocks of 8 poses in structure-of-arrays form (every matrix entry an
+//!   8-wide vector: one AVX-512 register), one dispatch per joint per block.
+//!
+//! Depends on [`crate::program`], [`crate::step`], [`crate::sincos`] and
+//! [`crate::kernel`]. Unchecked by design, like the [`crate::Chain`] methods.
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several arrays in step; they vectorise as written"
+)]
+
+use crate::kernel::Kernel;
+use crate::program::{CHUNK, Cols, FrameOffset, Lanes, Program, from_cols};
+use crate::sincos::{madd, sincos_lanes};
+use crate::step::{self, State};
+use crate::transform::Transform;
+
+/// Poses per batch block.
+pub(crate) const LANES: usize = 8;
+
+/// `cos θ`, `sin θ`, `dz = d + q` (prismatic) and `q` of prismatic joints,
+/// for one chunk of [`CHUNK`] joints of one pose.
+struct JointValues {
+    c: [f64; CHUNK],
+    s: [f64; CHUNK],
+    dz: [f64; CHUNK],
+    qz: [f64; CHUNK],
+}
+
+/// Joint values `q[start..start + CHUNK]` (missing ones count as 0) turned into
+/// [`JointValues`], all lanes at once: `θ = q·scale + θ0` for revolute joints,
+/// one vectorised sine/cosine, then revolute/prismatic picked by the 1/0 lane
+/// masks (no branch).
+#[inline(always)]
+fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64) -> JointValues {
+    let mut qb = [0.0; CHUNK];
+    if let Some(rest) = q.get(start..) {
+        let n = rest.len().min(CHUNK);
+        qb[..n].copy_from_slice(&rest[..n]);
+    }
+    let mut x = [0.0; CHUNK];
+    for k in 0..CHUNK {
+        x[k] = madd::<FMA>(qb[k], scale * l.rev[k], l.theta[k]);
+    }
+    let (sp, cp) = sincos_lanes::<FMA, CHUNK>(&x);
+    let mut v = JointValues {
+        c: [0.0; CHUNK],
+        s: [0.0; CHUNK],
+        dz: [0.0; CHUNK],
+        qz: [0.0; CHUNK],
+    };
+    for k in 0..CHUNK {
+        v.c[k] = madd::<FMA>(l.rev[k], cp[k], l.pri[k] * l.ct[k]);
+        v.s[k] = madd::<FMA>(l.rev[k], sp[k], l.pri[k] * l.st[k]);
+        v.qz[k] = qb[k] * l.pri[k];
+        v.dz[k] = l.dz[k] + v.qz[k];
+    }
+    v
+}
+
+/// World pose of the tool tip (see [`crate::Chain::forward`]).
+#[inline(always)]
+fn forward<const FMA: bool>(p: &Program, q: &[f64], scale: f64) -> Transform {
+    let mut m: State<4, 1> = [p.base];
+    for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
+        let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
+        for (k, st) in steps.iter().enumerate().take(CHUNK) {
+            step::apply::<FMA, 4, 1>(st, &mut m, &[v.c[k]; 4], &[v.s[k]; 4], &[v.dz[k]; 4]);
+        }
+    }
+    from_cols(&m[0])
+}
+
+/// `N = prev · Rz(θ) · Tz(qz)`: the state right after a joint, before its constant.
+#[inline(always)]
+fn joint_part<const FMA: bool>(prev: &Cols, c: f64, s: f64, qz: f64) -> Cols {
+    let [x, y, z, p] = *prev;
+    let mut n = [[0.0; 4]; 4];
+    for k in 0..4 {
+        n[0][k] = madd::<FMA>(x[k], c, y[k] * s);
+        n[1][k] = madd::<FMA>(y[k], c, -(x[k] * s));
+        n[2][k] = z[k];
+        n[3][k] = madd::<FMA>(z[k], qz, p[k]);
+    }
+    n
+}
+
+/// `n · k` for column-major rigid transforms.
+#[inline(always)]
+fn mul_cols<const FMA: bool>(n: &Cols, k: &Cols) -> Cols {
+    let mut out = [[0.0; 4]; 4];
+    for j in 0..4 {
+        for r in 0..4 {
+            let t = madd::<FMA>(n[0][r], k[j][0], madd::<FMA>(n[1][r], k[j][1], n[2][r] * k[j][2]));
+            out[j][r] = if j == 3 { t + n[3][r] } else { t };
+        }
+    }
+    out
+}
+
+/// `n` translated by `t` in its own axes.
+#[inline(always)]
+fn translate<const FMA: bool>(n: &Cols, t: &[f64; 3]) -> Cols {
+    let mut out = *n;
+    for r in 0..4 {
+        out[3][r] = madd::<FMA>(n[0][r], t[0], madd::<FMA>(n[1][r], t[1], madd::<FMA>(n[2][r], t[2], n[3][r])));
+    }
+    out
+}
+
+/// Tool pose, calling `frame` with every frame (see [`crate::Chain::forward_frames_into`]).
+#[inline(always)]
+fn forward_frames<const FMA: bool>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    frame: &mut dyn FnMut(&Transform),
+) -> Transform {
+    for f in &p.lead_frames {
+        frame(f);
+    }
+    let mut m: State<4, 1> = [p.base];
+    for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
+        let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
+        let offsets = &p.frame_offsets[ci * CHUNK..];
+        for ((k, st), offs) in steps.iter().enumerate().take(CHUNK).zip(offsets) {
+            let prev = m[0];
+            step::apply::<FMA, 4, 1>(st, &mut m, &[v.c[k]; 4], &[v.s[k]; 4], &[v.dz[k]; 4]);
+            for off in offs {
+                let t = match off {
+                    FrameOffset::AfterStep => m[0],
+                    FrameOffset::Translate(t) => {
+                        translate::<FMA>(&joint_part::<FMA>(&prev, v.c[k], v.s[k], v.qz[k]), t)
+                    }
+                    FrameOffset::General(kc) => {
+                        mul_cols::<FMA>(&joint_part::<FMA>(&prev, v.c[k], v.s[k], v.qz[k]), kc)
+                    }
+                };
+                frame(&from_cols(&t));
+            }
+        }
+    }
+    from_cols(&m[0])
+}
+
+/// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
+#[inline(always)]
+fn forward_batch<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+    let dof = p.steps.len();
+    if dof == 0 {
+        return;
+    }
+    let count = (q.len() / dof).min(out.len());
+    let blocks = count / LANES;
+    for (qb, ob) in q
+        .chunks_exact(LANES * dof)
+        .zip(out.chunks_exact_mut(LANES))
+        .take(blocks)
+    {
+        batch_block::<FMA>(p, qb, scale, ob);
+    }
+    for i in blocks * LANES..count {
+        out[i] = forward::<FMA>(p, &q[i * dof..(i + 1) * dof], scale);
+    }
+}
+
+/// Eight poses in structure-of-arrays form: every entry of the 3×4 state is an
+/// 8-wide vector, so each step is whole-vector arithmetic; the joint kind is
+/// dispatched once per joint for all eight.
+#[inline(always)]
+fn batch_block<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+    let dof = p.steps.len();
+    let cfg: [&[f64]; LANES] = std::array::from_fn(|k| &q[k * dof..(k + 1) * dof]);
+    let mut m: State<LANES, 3> = [[[0.0; LANES]; 4]; 3];
+    for r in 0..3 {
+        for col in 0..4 {
+            m[r][col] = [p.base[col][r]; LANES];
+        }
+    }
+    for (j, st) in p.steps.iter().enumerate().take(dof) {
+        let mut qv = [0.0; LANES];
+        for k in 0..LANES {
+            qv[k] = cfg[k][j];
+        }
+        let sc = scale * st.rev;
+        let mut x = [0.0; LANES];
+        for k in 0..LANES {
+            x[k] = madd::<FMA>(qv[k], sc, st.theta);
+        }
+        let (sp, cp) = sincos_lanes::<FMA, LANES>(&x);
+        let (mut c, mut s, mut dz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for k in 0..LANES {
+            c[k] = madd::<FMA>(st.rev, cp[k], st.pri * st.ct);
+            s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
+            dz[k] = st.c[3][2] + qv[k] * st.pri;
+        }
+        step::apply::<FMA, LANES, 3>(st, &mut m, &c, &s, &dz);
+    }
+    for (k, o) in out.iter_mut().enumerate().take(LANES) {
+        *o = Transform {
+            rotation: [
+                [m[0][0][k], m[0][1][k], m[0][2][k]],
+                [m[1][0][k], m[1][1][k], m[1][2][k]],
+                [m[2][0][k], m[2][1][k], m[2][2][k]],
+            ],
+            translation: [m[0][3][k], m[1][3][k], m[2][3][k]],
+        };
+    }
+}
+
+/// One `#[target_feature]` copy of each evaluator per x86_64 kernel.
+macro_rules! instantiate {
+    ($name:ident, $features:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        mod $name {
+            use super::*;
+
+            #[target_feature(enable = $features)]
+            pub(super) fn forward(p: &Program, q: &[f64], scale: f64) -> Transform {
+                super::forward::<true>(p, q, scale)
+            }
+
+            #[target_feature(enable = $features)]
+            pub(super) fn forward_frames(
+                p: &Program,
+                q: &[f64],
+                scale: f64,
+                frame: &mut dyn FnMut(&Transform),
+            ) -> Transform {
+                super::forward_frames::<true>(p, q, scale, frame)
+            }
+
+            #[target_feature(enable = $features)]
+            pub(super) fn forward_batch(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+                super::forward_batch::<true>(p, q, scale, out)
+            }
+        }
+    };
+}
+
+instantiate!(avx2, "avx2,fma");
+instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma");
+
+/// Single pose on `kernel` (the portable one if the CPU lacks it).
+#[inline]
+pub(crate) fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
+    match kernel.or_portable() {
+        Kernel::Portable => forward::<false>(p, q, scale),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        Kernel::Avx2Fma => unsafe { avx2::forward(p, q, scale) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        Kernel::Avx512 => unsafe { avx512::forward(p, q, scale) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => forward::<false>(p, q, scale),
+    }
+}
+
+/// Frames on `kernel` (the portable one if the CPU lacks it).
+pub(crate) fn forward_frames_on(
+    kernel: Kernel,
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    frame: &mut dyn FnMut(&Transform),
+) -> Transform {
+    match kernel.or_portable() {
+        Kernel::Portable => forward_frames::<false>(p, q, scale, frame),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        Kernel::Avx2Fma => unsafe { avx2::forward_frames(p, q, scale, frame) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        Kernel::Avx512 => unsafe { avx512::forward_frames(p, q, scale, frame) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => forward_frames::<false>(p, q, scale, frame),
+    }
+}
+
+/// Batch on `kernel` (the portable one if the CPU lacks it).
+pub(crate) fn forward_batch_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+    match kernel.or_portable() {
+        Kernel::Portable => forward_batch::<false>(p, q, scale, out),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        Kernel::Avx2Fma => unsafe { avx2::forward_batch(p, q, scale, out) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => forward_batch::<false>(p, q, scale, out),
+    }
+}
