@@ -19,6 +19,9 @@
 )]
 
 use crate::kernel::Kernel;
+#[cfg(target_arch = "x86_64")]
+use crate::lane::Ymm;
+use crate::lane::{Arr, Lane};
 use crate::program::{CHUNK, Cols, FrameOffset, Lanes, Program, from_cols};
 use crate::sincos::{madd, sincos_lanes};
 use crate::step::{self, State};
@@ -42,10 +45,14 @@ struct JointValues {
 /// masks (no branch).
 #[inline(always)]
 fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64) -> JointValues {
+    // Branch-free and call-free (a copy of the variable-length tail becomes a
+    // `memcpy` call): clamped loads, then zero where past the end.
     let mut qb = [0.0; CHUNK];
-    if let Some(rest) = q.get(start..) {
-        let n = rest.len().min(CHUNK);
-        qb[..n].copy_from_slice(&rest[..n]);
+    if let Some(last) = q.len().checked_sub(1) {
+        for k in 0..CHUNK {
+            let v = q[(start + k).min(last)];
+            qb[k] = if start + k <= last { v } else { 0.0 };
+        }
     }
     let mut x = [0.0; CHUNK];
     for k in 0..CHUNK {
@@ -67,59 +74,109 @@ fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64)
     v
 }
 
-/// World pose of the tool tip (see [`crate::Chain::forward`]).
+/// A 4-lane column of the single-pose state: [`Lane`] plus loading and storing.
+pub(crate) trait Col4: Lane {
+    /// Loads four doubles.
+    ///
+    /// # Safety
+    /// The CPU must support the target features the type's operations use
+    /// (none for [`Arr`]; AVX2 and FMA for `Ymm`).
+    unsafe fn load(a: &[f64; 4]) -> Self;
+    /// The four doubles.
+    fn store(self) -> [f64; 4];
+}
+
+impl<const FMA: bool> Col4 for Arr<FMA, 4> {
+    #[inline(always)]
+    unsafe fn load(a: &[f64; 4]) -> Self {
+        Arr(*a)
+    }
+    #[inline(always)]
+    fn store(self) -> [f64; 4] {
+        self.0
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Col4 for Ymm {
+    #[inline(always)]
+    unsafe fn load(a: &[f64; 4]) -> Self {
+        // SAFETY: forwarded from this function's own contract.
+        unsafe { Ymm::load(a) }
+    }
+    #[inline(always)]
+    fn store(self) -> [f64; 4] {
+        Ymm::store(self)
+    }
+}
+
+/// # Safety
+/// See [`Col4::load`].
 #[inline(always)]
-fn forward<const FMA: bool>(p: &Program, q: &[f64], scale: f64) -> Transform {
-    let mut m: State<4, 1> = [p.base];
+unsafe fn load_cols<V: Col4>(c: &Cols) -> [V; 4] {
+    // SAFETY: forwarded from this function's own contract.
+    unsafe { [V::load(&c[0]), V::load(&c[1]), V::load(&c[2]), V::load(&c[3])] }
+}
+
+#[inline(always)]
+fn transform_of<V: Col4>(m: &[V; 4]) -> Transform {
+    from_cols(&[m[0].store(), m[1].store(), m[2].store(), m[3].store()])
+}
+
+/// World pose of the tool tip (see [`crate::Chain::forward`]).
+///
+/// # Safety
+/// See [`Col4::load`].
+#[inline(always)]
+unsafe fn forward<const FMA: bool, V: Col4>(p: &Program, q: &[f64], scale: f64) -> Transform {
+    // SAFETY: forwarded from this function's own contract.
+    let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
         let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
         for (k, st) in steps.iter().enumerate().take(CHUNK) {
-            step::apply::<FMA, 4, 1>(st, &mut m, &[v.c[k]; 4], &[v.s[k]; 4], &[v.dz[k]; 4]);
+            step::apply::<V, 1>(st, &mut m, V::splat(v.c[k]), V::splat(v.s[k]), V::splat(v.dz[k]));
         }
     }
-    from_cols(&m[0])
+    transform_of(&m[0])
 }
 
 /// `N = prev · Rz(θ) · Tz(qz)`: the state right after a joint, before its constant.
 #[inline(always)]
-fn joint_part<const FMA: bool>(prev: &Cols, c: f64, s: f64, qz: f64) -> Cols {
+fn joint_part<V: Lane>(prev: &[V; 4], c: f64, s: f64, qz: f64) -> [V; 4] {
     let [x, y, z, p] = *prev;
-    let mut n = [[0.0; 4]; 4];
-    for k in 0..4 {
-        n[0][k] = madd::<FMA>(x[k], c, y[k] * s);
-        n[1][k] = madd::<FMA>(y[k], c, -(x[k] * s));
-        n[2][k] = z[k];
-        n[3][k] = madd::<FMA>(z[k], qz, p[k]);
-    }
-    n
+    let (c, s) = (V::splat(c), V::splat(s));
+    [
+        x.madd(c, y.mul(s)),
+        y.madd(c, x.mul(s).neg()),
+        z,
+        z.madd(V::splat(qz), p),
+    ]
 }
 
-/// `n · k` for column-major rigid transforms.
+/// `n · k` for rigid transforms (`k` column-major).
 #[inline(always)]
-fn mul_cols<const FMA: bool>(n: &Cols, k: &Cols) -> Cols {
-    let mut out = [[0.0; 4]; 4];
-    for j in 0..4 {
-        for r in 0..4 {
-            let t = madd::<FMA>(n[0][r], k[j][0], madd::<FMA>(n[1][r], k[j][1], n[2][r] * k[j][2]));
-            out[j][r] = if j == 3 { t + n[3][r] } else { t };
-        }
-    }
-    out
+fn mul_cols<V: Lane>(n: &[V; 4], k: &Cols) -> [V; 4] {
+    let col = |j: usize| {
+        let [a, b, c, _] = k[j].map(V::splat);
+        n[0].madd(a, n[1].madd(b, n[2].mul(c)))
+    };
+    let [a, b, c, _] = k[3].map(V::splat);
+    [col(0), col(1), col(2), n[0].madd(a, n[1].madd(b, n[2].madd(c, n[3])))]
 }
 
 /// `n` translated by `t` in its own axes.
 #[inline(always)]
-fn translate<const FMA: bool>(n: &Cols, t: &[f64; 3]) -> Cols {
-    let mut out = *n;
-    for r in 0..4 {
-        out[3][r] = madd::<FMA>(n[0][r], t[0], madd::<FMA>(n[1][r], t[1], madd::<FMA>(n[2][r], t[2], n[3][r])));
-    }
-    out
+fn translate<V: Lane>(n: &[V; 4], t: &[f64; 3]) -> [V; 4] {
+    let [a, b, c] = t.map(V::splat);
+    [n[0], n[1], n[2], n[0].madd(a, n[1].madd(b, n[2].madd(c, n[3])))]
 }
 
 /// Tool pose, calling `frame` with every frame (see [`crate::Chain::forward_frames_into`]).
+///
+/// # Safety
+/// See [`Col4::load`].
 #[inline(always)]
-fn forward_frames<const FMA: bool>(
+unsafe fn forward_frames<const FMA: bool, V: Col4>(
     p: &Program,
     q: &[f64],
     scale: f64,
@@ -128,28 +185,29 @@ fn forward_frames<const FMA: bool>(
     for f in &p.lead_frames {
         frame(f);
     }
-    let mut m: State<4, 1> = [p.base];
+    // SAFETY: forwarded from this function's own contract.
+    let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
         let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
         let offsets = &p.frame_offsets[ci * CHUNK..];
         for ((k, st), offs) in steps.iter().enumerate().take(CHUNK).zip(offsets) {
             let prev = m[0];
-            step::apply::<FMA, 4, 1>(st, &mut m, &[v.c[k]; 4], &[v.s[k]; 4], &[v.dz[k]; 4]);
+            step::apply::<V, 1>(st, &mut m, V::splat(v.c[k]), V::splat(v.s[k]), V::splat(v.dz[k]));
             for off in offs {
                 let t = match off {
                     FrameOffset::AfterStep => m[0],
                     FrameOffset::Translate(t) => {
-                        translate::<FMA>(&joint_part::<FMA>(&prev, v.c[k], v.s[k], v.qz[k]), t)
+                        translate(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), t)
                     }
                     FrameOffset::General(kc) => {
-                        mul_cols::<FMA>(&joint_part::<FMA>(&prev, v.c[k], v.s[k], v.qz[k]), kc)
+                        mul_cols(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), kc)
                     }
                 };
-                frame(&from_cols(&t));
+                frame(&transform_of(&t));
             }
         }
     }
-    from_cols(&m[0])
+    transform_of(&m[0])
 }
 
 /// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
@@ -169,7 +227,8 @@ fn forward_batch<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut 
         batch_block::<FMA>(p, qb, scale, ob);
     }
     for i in blocks * LANES..count {
-        out[i] = forward::<FMA>(p, &q[i * dof..(i + 1) * dof], scale);
+        // SAFETY: `Arr` needs no target feature.
+        out[i] = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
     }
 }
 
@@ -180,10 +239,11 @@ fn forward_batch<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut 
 fn batch_block<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
     let dof = p.steps.len();
     let cfg: [&[f64]; LANES] = std::array::from_fn(|k| &q[k * dof..(k + 1) * dof]);
-    let mut m: State<LANES, 3> = [[[0.0; LANES]; 4]; 3];
+    type V<const FMA: bool> = Arr<FMA, LANES>;
+    let mut m: State<V<FMA>, 3> = [[Arr([0.0; LANES]); 4]; 3];
     for r in 0..3 {
         for col in 0..4 {
-            m[r][col] = [p.base[col][r]; LANES];
+            m[r][col] = Arr([p.base[col][r]; LANES]);
         }
     }
     for (j, st) in p.steps.iter().enumerate().take(dof) {
@@ -203,16 +263,16 @@ fn batch_block<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [T
             s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
             dz[k] = st.c[3][2] + qv[k] * st.pri;
         }
-        step::apply::<FMA, LANES, 3>(st, &mut m, &c, &s, &dz);
+        step::apply::<V<FMA>, 3>(st, &mut m, Arr(c), Arr(s), Arr(dz));
     }
     for (k, o) in out.iter_mut().enumerate().take(LANES) {
         *o = Transform {
             rotation: [
-                [m[0][0][k], m[0][1][k], m[0][2][k]],
-                [m[1][0][k], m[1][1][k], m[1][2][k]],
-                [m[2][0][k], m[2][1][k], m[2][2][k]],
+                [m[0][0].0[k], m[0][1].0[k], m[0][2].0[k]],
+                [m[1][0].0[k], m[1][1].0[k], m[1][2].0[k]],
+                [m[2][0].0[k], m[2][1].0[k], m[2][2].0[k]],
             ],
-            translation: [m[0][3][k], m[1][3][k], m[2][3][k]],
+            translation: [m[0][3].0[k], m[1][3].0[k], m[2][3].0[k]],
         };
     }
 }
@@ -226,7 +286,9 @@ macro_rules! instantiate {
 
             #[target_feature(enable = $features)]
             pub(super) fn forward(p: &Program, q: &[f64], scale: f64) -> Transform {
-                super::forward::<true>(p, q, scale)
+                // SAFETY: this function only runs on a CPU with the features above
+                // (its callers check), which include what `Ymm` needs.
+                unsafe { super::forward::<true, Ymm>(p, q, scale) }
             }
 
             #[target_feature(enable = $features)]
@@ -236,7 +298,8 @@ macro_rules! instantiate {
                 scale: f64,
                 frame: &mut dyn FnMut(&Transform),
             ) -> Transform {
-                super::forward_frames::<true>(p, q, scale, frame)
+                // SAFETY: as in `forward`.
+                unsafe { super::forward_frames::<true, Ymm>(p, q, scale, frame) }
             }
 
             #[target_feature(enable = $features)]
@@ -254,7 +317,8 @@ instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma");
 #[inline]
 pub(crate) fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
     match kernel.or_portable() {
-        Kernel::Portable => forward::<false>(p, q, scale),
+        // SAFETY: `Arr` needs no target feature.
+        Kernel::Portable => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward(p, q, scale) },
@@ -262,7 +326,8 @@ pub(crate) fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> 
         // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
         Kernel::Avx512 => unsafe { avx512::forward(p, q, scale) },
         #[cfg(not(target_arch = "x86_64"))]
-        _ => forward::<false>(p, q, scale),
+        // SAFETY: `Arr` needs no target feature.
+        _ => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
     }
 }
 
@@ -275,7 +340,8 @@ pub(crate) fn forward_frames_on(
     frame: &mut dyn FnMut(&Transform),
 ) -> Transform {
     match kernel.or_portable() {
-        Kernel::Portable => forward_frames::<false>(p, q, scale, frame),
+        // SAFETY: `Arr` needs no target feature.
+        Kernel::Portable => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward_frames(p, q, scale, frame) },
@@ -283,7 +349,8 @@ pub(crate) fn forward_frames_on(
         // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
         Kernel::Avx512 => unsafe { avx512::forward_frames(p, q, scale, frame) },
         #[cfg(not(target_arch = "x86_64"))]
-        _ => forward_frames::<false>(p, q, scale, frame),
+        // SAFETY: `Arr` needs no target feature.
+        _ => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },
     }
 }
 

@@ -22,6 +22,7 @@ mod chain;
 mod convert;
 mod eval;
 mod kernel;
+mod lane;
 mod program;
 pub mod sincos;
 mod step;
