@@ -20,10 +20,10 @@
 
 use crate::kernel::Kernel;
 #[cfg(target_arch = "x86_64")]
-use crate::lane::Ymm;
-use crate::lane::{Arr, Lane};
+use crate::lane::{Ymm, Ymm2, Zmm};
+use crate::lane::{Arr, Lane, Lane8};
 use crate::program::{CHUNK, Cols, FrameOffset, Lanes, Program, from_cols};
-use crate::sincos::{madd, sincos_lanes};
+use crate::sincos::{madd, sincos_lanes, sincos_poly_lanes};
 use crate::step::{self, State};
 use crate::transform::Transform;
 
@@ -156,19 +156,21 @@ fn joint_part<V: Lane>(prev: &[V; 4], c: f64, s: f64, qz: f64) -> [V; 4] {
 /// `n · k` for rigid transforms (`k` column-major).
 #[inline(always)]
 fn mul_cols<V: Lane>(n: &[V; 4], k: &Cols) -> [V; 4] {
-    let col = |j: usize| {
-        let [a, b, c, _] = k[j].map(V::splat);
-        n[0].madd(a, n[1].madd(b, n[2].mul(c)))
-    };
-    let [a, b, c, _] = k[3].map(V::splat);
-    [col(0), col(1), col(2), n[0].madd(a, n[1].madd(b, n[2].madd(c, n[3])))]
+    let mut out = *n;
+    for j in 0..4 {
+        let [a, b, c, _] = k[j];
+        let last = if j == 3 { n[3] } else { V::splat(0.0) };
+        out[j] = n[0].madd(V::splat(a), n[1].madd(V::splat(b), n[2].madd(V::splat(c), last)));
+    }
+    out
 }
 
 /// `n` translated by `t` in its own axes.
 #[inline(always)]
 fn translate<V: Lane>(n: &[V; 4], t: &[f64; 3]) -> [V; 4] {
-    let [a, b, c] = t.map(V::splat);
-    [n[0], n[1], n[2], n[0].madd(a, n[1].madd(b, n[2].madd(c, n[3])))]
+    let [a, b, c] = *t;
+    let p = n[0].madd(V::splat(a), n[1].madd(V::splat(b), n[2].madd(V::splat(c), n[3])));
+    [n[0], n[1], n[2], p]
 }
 
 /// Tool pose, calling `frame` with every frame (see [`crate::Chain::forward_frames_into`]).
@@ -211,22 +213,50 @@ unsafe fn forward_frames<const FMA: bool, V: Col4>(
 }
 
 /// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
+///
+/// # Safety
+/// See [`Lane8::load8`] and [`Col4::load`].
 #[inline(always)]
-fn forward_batch<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) {
     let dof = p.steps.len();
     if dof == 0 {
         return;
     }
     let count = (q.len() / dof).min(out.len());
     let blocks = count / LANES;
-    for (qb, ob) in q
-        .chunks_exact(LANES * dof)
-        .zip(out.chunks_exact_mut(LANES))
-        .take(blocks)
-    {
-        batch_block::<FMA>(p, qb, scale, ob);
+    for b in 0..blocks {
+        let (qb, ob) = (&q[b * LANES * dof..(b + 1) * LANES * dof], &mut out[b * LANES..(b + 1) * LANES]);
+        // SAFETY: forwarded from this function's own contract.
+        if !unsafe { batch_block::<FMA, V>(p, qb, scale, ob) } {
+            // Rare: an angle beyond the polynomial's range; redo these poses one
+            // by one (the single path falls back to `std` per joint).
+            redo::<FMA>(p, q, scale, out, b * LANES..(b + 1) * LANES);
+        }
     }
     for i in blocks * LANES..count {
+        // SAFETY: forwarded from this function's own contract.
+        out[i] = unsafe { forward::<FMA, W>(p, &q[i * dof..(i + 1) * dof], scale) };
+    }
+}
+
+/// Poses `range` of a batch by the single-pose path (compiled without the
+/// kernel's target features: correct everywhere, and rare).
+#[cold]
+#[inline(never)]
+fn redo<const FMA: bool>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+    range: std::ops::Range<usize>,
+) {
+    let dof = p.steps.len();
+    for i in range {
         // SAFETY: `Arr` needs no target feature.
         out[i] = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
     }
@@ -234,18 +264,28 @@ fn forward_batch<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut 
 
 /// Eight poses in structure-of-arrays form: every entry of the 3×4 state is an
 /// 8-wide vector, so each step is whole-vector arithmetic; the joint kind is
-/// dispatched once per joint for all eight.
+/// dispatched once per joint for all eight. No call inside, so the state stays
+/// in registers. Returns false if an angle needs `std` trigonometry (the poses
+/// are then wrong and the caller redoes them).
+///
+/// # Safety
+/// See [`Lane8::load8`].
 #[inline(always)]
-fn batch_block<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+unsafe fn batch_block<const FMA: bool, V: Lane8>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) -> bool {
     let dof = p.steps.len();
     let cfg: [&[f64]; LANES] = std::array::from_fn(|k| &q[k * dof..(k + 1) * dof]);
-    type V<const FMA: bool> = Arr<FMA, LANES>;
-    let mut m: State<V<FMA>, 3> = [[Arr([0.0; LANES]); 4]; 3];
+    let mut m: State<V, 3> = [[V::splat(0.0); 4]; 3];
     for r in 0..3 {
         for col in 0..4 {
-            m[r][col] = Arr([p.base[col][r]; LANES]);
+            m[r][col] = V::splat(p.base[col][r]);
         }
     }
+    let mut ok = true;
     for (j, st) in p.steps.iter().enumerate().take(dof) {
         let mut qv = [0.0; LANES];
         for k in 0..LANES {
@@ -256,30 +296,42 @@ fn batch_block<const FMA: bool>(p: &Program, q: &[f64], scale: f64, out: &mut [T
         for k in 0..LANES {
             x[k] = madd::<FMA>(qv[k], sc, st.theta);
         }
-        let (sp, cp) = sincos_lanes::<FMA, LANES>(&x);
+        let (sp, cp, bad) = sincos_poly_lanes::<FMA, LANES>(&x);
+        ok &= !bad;
         let (mut c, mut s, mut dz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
         for k in 0..LANES {
             c[k] = madd::<FMA>(st.rev, cp[k], st.pri * st.ct);
             s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
             dz[k] = st.c[3][2] + qv[k] * st.pri;
         }
-        step::apply::<V<FMA>, 3>(st, &mut m, Arr(c), Arr(s), Arr(dz));
+        // SAFETY: forwarded from this function's own contract.
+        let (c, s, dz) = unsafe { (V::load8(&c), V::load8(&s), V::load8(&dz)) };
+        step::apply::<V, 3>(st, &mut m, c, s, dz);
+    }
+    // Out of the vectors once (so the loop above keeps them in registers), then
+    // one pose per lane.
+    let mut e = [[[0.0; LANES]; 4]; 3];
+    for r in 0..3 {
+        for col in 0..4 {
+            e[r][col] = m[r][col].store8();
+        }
     }
     for (k, o) in out.iter_mut().enumerate().take(LANES) {
         *o = Transform {
             rotation: [
-                [m[0][0].0[k], m[0][1].0[k], m[0][2].0[k]],
-                [m[1][0].0[k], m[1][1].0[k], m[1][2].0[k]],
-                [m[2][0].0[k], m[2][1].0[k], m[2][2].0[k]],
+                [e[0][0][k], e[0][1][k], e[0][2][k]],
+                [e[1][0][k], e[1][1][k], e[1][2][k]],
+                [e[2][0][k], e[2][1][k], e[2][2][k]],
             ],
-            translation: [m[0][3].0[k], m[1][3].0[k], m[2][3].0[k]],
+            translation: [e[0][3][k], e[1][3][k], e[2][3][k]],
         };
     }
+    ok
 }
 
 /// One `#[target_feature]` copy of each evaluator per x86_64 kernel.
 macro_rules! instantiate {
-    ($name:ident, $features:literal) => {
+    ($name:ident, $features:literal, $batch:ty) => {
         #[cfg(target_arch = "x86_64")]
         mod $name {
             use super::*;
@@ -304,14 +356,15 @@ macro_rules! instantiate {
 
             #[target_feature(enable = $features)]
             pub(super) fn forward_batch(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
-                super::forward_batch::<true>(p, q, scale, out)
+                // SAFETY: as in `forward`.
+                unsafe { super::forward_batch::<true, $batch, Ymm>(p, q, scale, out) }
             }
         }
     };
 }
 
-instantiate!(avx2, "avx2,fma");
-instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma");
+instantiate!(avx2, "avx2,fma", Ymm2);
+instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
 
 /// Single pose on `kernel` (the portable one if the CPU lacks it).
 #[inline]
@@ -357,7 +410,8 @@ pub(crate) fn forward_frames_on(
 /// Batch on `kernel` (the portable one if the CPU lacks it).
 pub(crate) fn forward_batch_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
     match kernel.or_portable() {
-        Kernel::Portable => forward_batch::<false>(p, q, scale, out),
+        // SAFETY: `Arr` needs no target feature.
+        Kernel::Portable => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward_batch(p, q, scale, out) },
@@ -365,6 +419,7 @@ pub(crate) fn forward_batch_on(kernel: Kernel, p: &Program, q: &[f64], scale: f6
         // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
         Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
         #[cfg(not(target_arch = "x86_64"))]
-        _ => forward_batch::<false>(p, q, scale, out),
+        // SAFETY: `Arr` needs no target feature.
+        _ => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out) },
     }
 }

@@ -65,12 +65,38 @@ impl<const FMA: bool, const N: usize> Lane for Arr<FMA, N> {
     }
 }
 
+/// An 8-lane vector of the batch path (one lane per pose): [`Lane`] plus
+/// loading and storing.
+pub(crate) trait Lane8: Lane {
+    /// Loads eight doubles.
+    ///
+    /// # Safety
+    /// The CPU must support the target features the type's operations use.
+    unsafe fn load8(a: &[f64; 8]) -> Self;
+    /// The eight doubles.
+    fn store8(self) -> [f64; 8];
+}
+
+impl<const FMA: bool> Lane8 for Arr<FMA, 8> {
+    #[inline(always)]
+    unsafe fn load8(a: &[f64; 8]) -> Self {
+        Arr(*a)
+    }
+    #[inline(always)]
+    fn store8(self) -> [f64; 8] {
+        self.0
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
-pub(crate) use ymm::Ymm;
+pub(crate) use ymm::{Ymm, Ymm2};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use zmm::Zmm;
 
 #[cfg(target_arch = "x86_64")]
 mod ymm {
     use super::Lane;
+    #[allow(clippy::wildcard_imports)]
     use std::arch::x86_64::{
         __m256d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd,
         _mm256_storeu_pd, _mm256_sub_pd, _mm256_setzero_pd,
@@ -125,6 +151,100 @@ mod ymm {
         fn neg(self) -> Self {
             // SAFETY: as for `splat`.
             Ymm(unsafe { _mm256_sub_pd(_mm256_setzero_pd(), self.0) })
+        }
+    }
+
+    /// Eight doubles in two AVX registers (the AVX2 batch path), with the
+    /// same promise as [`Ymm`].
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Ymm2(Ymm, Ymm);
+
+    impl Lane for Ymm2 {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            Ymm2(Ymm::splat(x), Ymm::splat(x))
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            Ymm2(self.0.mul(b.0), self.1.mul(b.1))
+        }
+        #[inline(always)]
+        fn madd(self, b: Self, c: Self) -> Self {
+            Ymm2(self.0.madd(b.0, c.0), self.1.madd(b.1, c.1))
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            Ymm2(self.0.neg(), self.1.neg())
+        }
+    }
+
+    impl super::Lane8 for Ymm2 {
+        #[inline(always)]
+        unsafe fn load8(a: &[f64; 8]) -> Self {
+            let [a0, a1, a2, a3, a4, a5, a6, a7] = *a;
+            // SAFETY: forwarded from this function's own contract.
+            unsafe { Ymm2(Ymm::load(&[a0, a1, a2, a3]), Ymm::load(&[a4, a5, a6, a7])) }
+        }
+        #[inline(always)]
+        fn store8(self) -> [f64; 8] {
+            let [a0, a1, a2, a3] = self.0.store();
+            let [a4, a5, a6, a7] = self.1.store();
+            [a0, a1, a2, a3, a4, a5, a6, a7]
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod zmm {
+    use super::{Lane, Lane8};
+    use std::arch::x86_64::{
+        __m512d, _mm512_fmadd_pd, _mm512_loadu_pd, _mm512_mul_pd, _mm512_set1_pd,
+        _mm512_setzero_pd, _mm512_storeu_pd, _mm512_sub_pd,
+    };
+
+    /// Eight doubles in one AVX-512 register, with fused multiply-add.
+    ///
+    /// Only built by [`Lane8::load8`] and [`Lane::splat`]; the kernels that use it are
+    /// `#[target_feature(enable = "avx512f,...")]` and only run after the CPU
+    /// check, which is what makes every method sound.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Zmm(__m512d);
+
+    impl Lane for Zmm {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            // SAFETY: a `Zmm` is only used on a CPU with AVX-512F (see the type docs).
+            Zmm(unsafe { _mm512_set1_pd(x) })
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_mul_pd(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn madd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_fmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_sub_pd(_mm512_setzero_pd(), self.0) })
+        }
+    }
+
+    impl Lane8 for Zmm {
+        #[inline(always)]
+        unsafe fn load8(a: &[f64; 8]) -> Self {
+            // SAFETY: `a` is 8 readable doubles; the caller guarantees AVX-512F.
+            Zmm(unsafe { _mm512_loadu_pd(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store8(self) -> [f64; 8] {
+            let mut a = [0.0; 8];
+            // SAFETY: `a` is 8 writable doubles; a `Zmm` exists only on a CPU with AVX-512F.
+            unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
+            a
         }
     }
 }

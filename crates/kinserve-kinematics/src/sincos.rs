@@ -106,16 +106,27 @@ pub fn needs_std(x: f64) -> bool {
     !(x.abs() <= POLY_LIMIT)
 }
 
-/// Sine and cosine of `L` angles (rad) as whole vectors: the polynomial on every
-/// lane, then `std` for the lanes that need it (see [`needs_std`]) only when one does.
+/// The polynomial sine and cosine of `L` angles (rad) as whole vectors, and
+/// whether any lane [needs `std`](needs_std) (its values are then wrong). No
+/// call, so vector state around it stays in registers.
 #[inline(always)]
-pub(crate) fn sincos_lanes<const FMA: bool, const L: usize>(x: &[f64; L]) -> ([f64; L], [f64; L]) {
+pub(crate) fn sincos_poly_lanes<const FMA: bool, const L: usize>(
+    x: &[f64; L],
+) -> ([f64; L], [f64; L], bool) {
     let mut s = [0.0; L];
     let mut c = [0.0; L];
     for k in 0..L {
         (s[k], c[k]) = sincos_poly_impl::<FMA>(x[k]);
     }
-    if x.iter().fold(false, |any, &v| any | needs_std(v)) {
+    (s, c, x.iter().fold(false, |any, &v| any | needs_std(v)))
+}
+
+/// Sine and cosine of `L` angles (rad) as whole vectors: the polynomial on every
+/// lane, then `std` for the lanes that need it (see [`needs_std`]) only when one does.
+#[inline(always)]
+pub(crate) fn sincos_lanes<const FMA: bool, const L: usize>(x: &[f64; L]) -> ([f64; L], [f64; L]) {
+    let (mut s, mut c, any) = sincos_poly_lanes::<FMA, L>(x);
+    if any {
         for k in 0..L {
             if needs_std(x[k]) {
                 (s[k], c[k]) = x[k].sin_cos();

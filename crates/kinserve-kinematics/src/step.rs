@@ -27,7 +27,12 @@ pub(crate) type State<V, const R: usize> = [[V; 4]; R];
 pub(crate) fn apply<V: Lane, const R: usize>(step: &Step, m: &mut State<V, R>, c: V, s: V, dz: V) {
     macro_rules! aligned {
         ($rot:expr, $a:expr, $d:expr) => {
-            aligned::<V, R, { $rot }, $a, $d>(m, c, s, V::splat(step.c[3][0]), dz)
+            {
+                let a = V::splat(step.c[3][0]);
+                for row in m.iter_mut() {
+                    *row = aligned::<V, { $rot }, $a, $d>(*row, c, s, a, dz);
+                }
+            }
         };
     }
     match step.kind {
@@ -49,56 +54,58 @@ pub(crate) fn apply<V: Lane, const R: usize>(step: &Step, m: &mut State<V, R>, c
         15 => aligned!(ROT_180, true, true),
         _ => {
             debug_assert_eq!(step.kind, GENERAL);
-            general::<V, R>(m, c, s, &step.c, dz)
+            for row in m.iter_mut() {
+                *row = general::<V>(*row, c, s, &step.c, dz);
+            }
         }
     }
 }
 
-/// An aligned step: `x' = x·c + y·s`, `y' = y·c − x·s`, then the columns of
-/// `Rx(α)` (`ROT`) pick `±y'` / `±z`, and `p += x'·a (if A) + z·dz (if D)`.
+/// An aligned step on one row: `x' = x·c + y·s`, `y' = y·c − x·s`, then the
+/// columns of `Rx(α)` (`ROT`) pick `±y'` / `±z`, and `p += x'·a (if A) + z·dz (if D)`.
 #[inline(always)]
-fn aligned<V: Lane, const R: usize, const ROT: u8, const A: bool, const D: bool>(
-    m: &mut State<V, R>,
+fn aligned<V: Lane, const ROT: u8, const A: bool, const D: bool>(
+    [x, y, z, p]: [V; 4],
     c: V,
     s: V,
     a: V,
     dz: V,
-) {
-    for row in m.iter_mut() {
-        let [x, y, z, p] = *row;
-        let xn = x.madd(c, y.mul(s));
-        // y' and −y' directly, so no negation is left for the relabelling
-        // (the compiler drops whichever this ROT does not use).
-        let yn = y.madd(c, x.mul(s).neg());
-        let yneg = x.madd(s, y.mul(c).neg());
-        let mut pn = p;
-        if D {
-            pn = z.madd(dz, pn);
-        }
-        if A {
-            pn = xn.madd(a, pn);
-        }
-        let (c1, c2) = match ROT {
-            ROT_0 => (yn, z),
-            ROT_P90 => (z, yneg),
-            ROT_M90 => (z.neg(), yn),
-            _ => (yneg, z.neg()),
-        };
-        *row = [xn, c1, c2, pn];
+) -> [V; 4] {
+    let xn = x.madd(c, y.mul(s));
+    // y' and −y' directly, so no negation is left for the relabelling
+    // (the compiler drops whichever this ROT does not use).
+    let yn = y.madd(c, x.mul(s).neg());
+    let yneg = x.madd(s, y.mul(c).neg());
+    let mut pn = p;
+    if D {
+        pn = z.madd(dz, pn);
     }
+    if A {
+        pn = xn.madd(a, pn);
+    }
+    let (c1, c2) = match ROT {
+        ROT_0 => (yn, z),
+        ROT_P90 => (z, yneg),
+        ROT_M90 => (z.neg(), yn),
+        _ => (yneg, z.neg()),
+    };
+    [xn, c1, c2, pn]
 }
 
 /// A general step: `x', y'` as above, then the full product with `C`
 /// (column-major `k`; its z translation is in `dz`).
 #[inline(always)]
-fn general<V: Lane, const R: usize>(m: &mut State<V, R>, c: V, s: V, k: &[[f64; 4]; 4], dz: V) {
-    let e = |j: usize, i: usize| V::splat(k[j][i]);
-    for row in m.iter_mut() {
-        let [x, y, z, p] = *row;
-        let xn = x.madd(c, y.mul(s));
-        let yn = y.madd(c, x.mul(s).neg());
-        let col = |j: usize| xn.madd(e(j, 0), yn.madd(e(j, 1), z.mul(e(j, 2))));
-        let pn = xn.madd(e(3, 0), yn.madd(e(3, 1), z.madd(dz, p)));
-        *row = [col(0), col(1), col(2), pn];
+fn general<V: Lane>([x, y, z, p]: [V; 4], c: V, s: V, k: &[[f64; 4]; 4], dz: V) -> [V; 4] {
+    // No closures here or anywhere on these paths: a closure does not inherit
+    // the caller's target features, so it would not inline into the kernels.
+    let xn = x.madd(c, y.mul(s));
+    let yn = y.madd(c, x.mul(s).neg());
+    let mut out = [z; 4];
+    for j in 0..3 {
+        let [k0, k1, k2, _] = k[j];
+        out[j] = xn.madd(V::splat(k0), yn.madd(V::splat(k1), z.mul(V::splat(k2))));
     }
+    let [t0, t1, _, _] = k[3];
+    out[3] = xn.madd(V::splat(t0), yn.madd(V::splat(t1), z.madd(dz, p)));
+    out
 }
