@@ -18,6 +18,8 @@
     reason = "lane loops index several arrays in step; they vectorise as written"
 )]
 
+use std::mem::MaybeUninit;
+
 use crate::kernel::Kernel;
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{Ymm, Ymm2, Zmm};
@@ -84,6 +86,16 @@ pub(crate) trait Col4: Lane {
     unsafe fn load(a: &[f64; 4]) -> Self;
     /// The four doubles.
     fn store(self) -> [f64; 4];
+    /// Writes the transform with columns `cols` to `out`.
+    ///
+    /// # Safety
+    /// `out` must be valid for writes of one `Transform` (it may be uninitialised).
+    #[inline(always)]
+    unsafe fn store_transform(cols: &[Self; 4], out: *mut Transform) {
+        let t = from_cols(&[cols[0].store(), cols[1].store(), cols[2].store(), cols[3].store()]);
+        // SAFETY: by this function's contract.
+        unsafe { out.write(t) };
+    }
 }
 
 impl<const FMA: bool> Col4 for Arr<FMA, 4> {
@@ -108,6 +120,11 @@ impl Col4 for Ymm {
     fn store(self) -> [f64; 4] {
         Ymm::store(self)
     }
+    #[inline(always)]
+    unsafe fn store_transform(cols: &[Self; 4], out: *mut Transform) {
+        // SAFETY: forwarded from this function's own contract.
+        unsafe { Ymm::store_transform(cols, out) }
+    }
 }
 
 /// # Safety
@@ -120,7 +137,12 @@ unsafe fn load_cols<V: Col4>(c: &Cols) -> [V; 4] {
 
 #[inline(always)]
 fn transform_of<V: Col4>(m: &[V; 4]) -> Transform {
-    from_cols(&[m[0].store(), m[1].store(), m[2].store(), m[3].store()])
+    let mut t = MaybeUninit::<Transform>::uninit();
+    // SAFETY: `t` is valid for writes and fully written by `store_transform`.
+    unsafe {
+        V::store_transform(m, t.as_mut_ptr());
+        t.assume_init()
+    }
 }
 
 /// World pose of the tool tip (see [`crate::Chain::forward`]).
@@ -147,7 +169,7 @@ fn joint_part<V: Lane>(prev: &[V; 4], c: f64, s: f64, qz: f64) -> [V; 4] {
     let (c, s) = (V::splat(c), V::splat(s));
     [
         x.madd(c, y.mul(s)),
-        y.madd(c, x.mul(s).neg()),
+        x.nmadd(s, y.mul(c)),
         z,
         z.madd(V::splat(qz), p),
     ]
@@ -187,12 +209,19 @@ unsafe fn forward_frames<const FMA: bool, V: Col4>(
     for f in &p.lead_frames {
         frame(f);
     }
+    // Frames are collected and handed over in bursts: the vector state is then
+    // not live across the opaque callback calls, which made a call per frame
+    // cost ~60 % more (spills around every call). Uninitialised, because
+    // initialising 16 poses per call costs more than it saves.
+    let mut buf = [const { MaybeUninit::<Transform>::uninit() }; FRAME_BURST];
+    let mut n = 0;
     // SAFETY: forwarded from this function's own contract.
     let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
         let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
-        let offsets = &p.frame_offsets[ci * CHUNK..];
-        for ((k, st), offs) in steps.iter().enumerate().take(CHUNK).zip(offsets) {
+        for (k, st) in steps.iter().enumerate().take(CHUNK) {
+            let j = ci * CHUNK + k;
+            let offs = &p.frame_offsets[p.frame_start[j]..p.frame_start[j + 1]];
             let prev = m[0];
             step::apply::<V, 1>(st, &mut m, V::splat(v.c[k]), V::splat(v.s[k]), V::splat(v.dz[k]));
             for off in offs {
@@ -205,11 +234,35 @@ unsafe fn forward_frames<const FMA: bool, V: Col4>(
                         mul_cols(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), kc)
                     }
                 };
-                frame(&transform_of(&t));
+                if n == FRAME_BURST {
+                    // SAFETY: slots 0..n were written below.
+                    unsafe { flush(&buf[..n], frame) };
+                    n = 0;
+                }
+                // SAFETY: `buf[n]` is valid for writes of one `Transform`.
+                unsafe { V::store_transform(&t, buf[n].as_mut_ptr()) };
+                n += 1;
             }
         }
     }
+    // SAFETY: slots 0..n were written above.
+    unsafe { flush(&buf[..n], frame) };
     transform_of(&m[0])
+}
+
+/// Frames handed to the callback at a time by the frames path.
+const FRAME_BURST: usize = 16;
+
+/// Calls `frame` with each of `frames`, in order.
+///
+/// # Safety
+/// Every element of `frames` must be initialised.
+#[inline(never)]
+unsafe fn flush(frames: &[MaybeUninit<Transform>], frame: &mut dyn FnMut(&Transform)) {
+    for f in frames {
+        // SAFETY: initialised, by this function's contract.
+        frame(unsafe { f.assume_init_ref() });
+    }
 }
 
 /// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
@@ -329,9 +382,12 @@ unsafe fn batch_block<const FMA: bool, V: Lane8>(
     ok
 }
 
-/// One `#[target_feature]` copy of each evaluator per x86_64 kernel.
+/// One `#[target_feature]` copy of each evaluator per x86_64 kernel. There is no
+/// AVX-512 copy of the frames path: it was ~20 % slower than the AVX2 copy
+/// (measured on the project machine), and a frame is one 4-wide column set, so
+/// AVX-512 has nothing to add; [`Kernel::Avx512`] runs the AVX2 copy.
 macro_rules! instantiate {
-    ($name:ident, $features:literal, $batch:ty) => {
+    ($name:ident, $features:literal, $batch:ty $(, $frames:ident)?) => {
         #[cfg(target_arch = "x86_64")]
         mod $name {
             use super::*;
@@ -343,8 +399,9 @@ macro_rules! instantiate {
                 unsafe { super::forward::<true, Ymm>(p, q, scale) }
             }
 
+            $(
             #[target_feature(enable = $features)]
-            pub(super) fn forward_frames(
+            pub(super) fn $frames(
                 p: &Program,
                 q: &[f64],
                 scale: f64,
@@ -353,6 +410,7 @@ macro_rules! instantiate {
                 // SAFETY: as in `forward`.
                 unsafe { super::forward_frames::<true, Ymm>(p, q, scale, frame) }
             }
+            )?
 
             #[target_feature(enable = $features)]
             pub(super) fn forward_batch(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
@@ -363,7 +421,7 @@ macro_rules! instantiate {
     };
 }
 
-instantiate!(avx2, "avx2,fma", Ymm2);
+instantiate!(avx2, "avx2,fma", Ymm2, forward_frames);
 instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
 
 /// Single pose on `kernel` (the portable one if the CPU lacks it).
@@ -396,11 +454,9 @@ pub(crate) fn forward_frames_on(
         // SAFETY: `Arr` needs no target feature.
         Kernel::Portable => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
-        Kernel::Avx2Fma => unsafe { avx2::forward_frames(p, q, scale, frame) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
-        Kernel::Avx512 => unsafe { avx512::forward_frames(p, q, scale, frame) },
+        // SAFETY: `or_portable` returned Avx2Fma or Avx512, so the CPU supports
+        // avx2 and fma (Avx512 implies both; see `instantiate!` for why it runs this copy).
+        Kernel::Avx2Fma | Kernel::Avx512 => unsafe { avx2::forward_frames(p, q, scale, frame) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.
         _ => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },

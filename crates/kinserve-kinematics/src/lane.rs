@@ -26,7 +26,9 @@ pub(crate) trait Lane: Copy {
     fn mul(self, b: Self) -> Self;
     /// `self · b + c`, lane by lane (fused for the FMA kernels).
     fn madd(self, b: Self, c: Self) -> Self;
-    /// `−self`.
+    /// `c − self · b`, lane by lane (fused for the FMA kernels).
+    fn nmadd(self, b: Self, c: Self) -> Self;
+    /// `−self` (a sign flip, exact).
     fn neg(self) -> Self;
 }
 
@@ -52,6 +54,14 @@ impl<const FMA: bool, const N: usize> Lane for Arr<FMA, N> {
         let mut o = [0.0; N];
         for k in 0..N {
             o[k] = madd::<FMA>(self.0[k], b.0[k], c.0[k]);
+        }
+        Arr(o)
+    }
+    #[inline(always)]
+    fn nmadd(self, b: Self, c: Self) -> Self {
+        let mut o = [0.0; N];
+        for k in 0..N {
+            o[k] = madd::<FMA>(-self.0[k], b.0[k], c.0[k]);
         }
         Arr(o)
     }
@@ -97,9 +107,12 @@ pub(crate) use zmm::Zmm;
 mod ymm {
     use super::Lane;
     #[allow(clippy::wildcard_imports)]
+    use crate::transform::Transform;
     use std::arch::x86_64::{
-        __m256d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd,
-        _mm256_storeu_pd, _mm256_sub_pd, _mm256_setzero_pd,
+        __m256d, _mm_store_sd, _mm_storeu_pd, _mm256_castpd256_pd128, _mm256_extractf128_pd,
+        _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_loadu_pd, _mm256_mul_pd,
+        _mm256_permute2f128_pd, _mm256_set1_pd, _mm256_storeu_pd, _mm256_unpackhi_pd,
+        _mm256_unpacklo_pd, _mm256_xor_pd,
     };
 
     /// Four doubles in one AVX register, with fused multiply-add.
@@ -119,6 +132,35 @@ mod ymm {
         pub(crate) unsafe fn load(a: &[f64; 4]) -> Ymm {
             // SAFETY: `a` is 4 readable doubles; the caller guarantees AVX.
             Ymm(unsafe { _mm256_loadu_pd(a.as_ptr()) })
+        }
+
+        /// Writes the rigid transform whose columns x, y, z, p are `cols`
+        /// (lane 3 unused) as a row-major [`Transform`]: a 4×4 transpose in
+        /// registers and four overlapping stores instead of twelve scalar ones.
+        ///
+        /// # Safety
+        /// `out` must be valid for writes of one `Transform` (it may be uninitialised).
+        #[inline(always)]
+        pub(crate) unsafe fn store_transform(cols: &[Ymm; 4], out: *mut Transform) {
+            let [Ymm(x), Ymm(y), Ymm(z), Ymm(p)] = *cols;
+            let base: *mut f64 = out.cast();
+            // SAFETY: `out` is writable (this function's contract); a `Ymm` exists
+            // only on a CPU with AVX (see `Ymm::load`).
+            // `Transform` is `repr(C)`: 12 contiguous doubles, rotation rows at
+            // 0, 3, 6 and the translation at 9; every store below stays inside
+            // them (each row store's fourth lane is overwritten by the next one,
+            // the last by the translation).
+            unsafe {
+                let xy_lo = _mm256_unpacklo_pd(x, y); // x0 y0 x2 y2
+                let xy_hi = _mm256_unpackhi_pd(x, y); // x1 y1 .. ..
+                let zp_lo = _mm256_unpacklo_pd(z, p); // z0 p0 z2 p2
+                let zp_hi = _mm256_unpackhi_pd(z, p); // z1 p1 .. ..
+                _mm256_storeu_pd(base, _mm256_permute2f128_pd::<0x20>(xy_lo, zp_lo));
+                _mm256_storeu_pd(base.add(3), _mm256_permute2f128_pd::<0x20>(xy_hi, zp_hi));
+                _mm256_storeu_pd(base.add(6), _mm256_permute2f128_pd::<0x31>(xy_lo, zp_lo));
+                _mm_storeu_pd(base.add(9), _mm256_castpd256_pd128(p));
+                _mm_store_sd(base.add(11), _mm256_extractf128_pd::<1>(p));
+            }
         }
 
         /// The four doubles.
@@ -148,9 +190,14 @@ mod ymm {
             Ymm(unsafe { _mm256_fmadd_pd(self.0, b.0, c.0) })
         }
         #[inline(always)]
+        fn nmadd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`; FMA is part of the promise.
+            Ymm(unsafe { _mm256_fnmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
         fn neg(self) -> Self {
             // SAFETY: as for `splat`.
-            Ymm(unsafe { _mm256_sub_pd(_mm256_setzero_pd(), self.0) })
+            Ymm(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
         }
     }
 
@@ -171,6 +218,10 @@ mod ymm {
         #[inline(always)]
         fn madd(self, b: Self, c: Self) -> Self {
             Ymm2(self.0.madd(b.0, c.0), self.1.madd(b.1, c.1))
+        }
+        #[inline(always)]
+        fn nmadd(self, b: Self, c: Self) -> Self {
+            Ymm2(self.0.nmadd(b.0, c.0), self.1.nmadd(b.1, c.1))
         }
         #[inline(always)]
         fn neg(self) -> Self {
@@ -198,22 +249,22 @@ mod ymm {
 mod zmm {
     use super::{Lane, Lane8};
     use std::arch::x86_64::{
-        __m512d, _mm512_fmadd_pd, _mm512_loadu_pd, _mm512_mul_pd, _mm512_set1_pd,
-        _mm512_setzero_pd, _mm512_storeu_pd, _mm512_sub_pd,
+        __m512d, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd,
+        _mm512_set1_pd, _mm512_storeu_pd, _mm512_xor_pd,
     };
 
     /// Eight doubles in one AVX-512 register, with fused multiply-add.
     ///
     /// Only built by [`Lane8::load8`] and [`Lane::splat`]; the kernels that use it are
-    /// `#[target_feature(enable = "avx512f,...")]` and only run after the CPU
-    /// check, which is what makes every method sound.
+    /// `#[target_feature(enable = "avx512f,avx512dq,...")]` and only run after
+    /// the CPU check, which is what makes every method sound.
     #[derive(Clone, Copy, Debug)]
     pub(crate) struct Zmm(__m512d);
 
     impl Lane for Zmm {
         #[inline(always)]
         fn splat(x: f64) -> Self {
-            // SAFETY: a `Zmm` is only used on a CPU with AVX-512F (see the type docs).
+            // SAFETY: a `Zmm` is only used on a CPU with AVX-512F and DQ (see the type docs).
             Zmm(unsafe { _mm512_set1_pd(x) })
         }
         #[inline(always)]
@@ -227,9 +278,14 @@ mod zmm {
             Zmm(unsafe { _mm512_fmadd_pd(self.0, b.0, c.0) })
         }
         #[inline(always)]
-        fn neg(self) -> Self {
+        fn nmadd(self, b: Self, c: Self) -> Self {
             // SAFETY: as for `splat`.
-            Zmm(unsafe { _mm512_sub_pd(_mm512_setzero_pd(), self.0) })
+            Zmm(unsafe { _mm512_fnmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: as for `splat` (the double xor is AVX-512DQ, part of the promise).
+            Zmm(unsafe { _mm512_xor_pd(self.0, _mm512_set1_pd(-0.0)) })
         }
     }
 

@@ -111,8 +111,11 @@ pub(crate) struct Program {
     /// The frames that do not depend on q: the base frame and those of fixed rows
     /// before the first joint.
     pub lead_frames: Vec<Transform>,
-    /// Per joint, the frames of its own row and of the fixed rows after it.
-    pub frame_offsets: Vec<Vec<FrameOffset>>,
+    /// Per joint, the frames of its own row and of the fixed rows after it,
+    /// back to back: joint `j` has `frame_offsets[frame_start[j]..frame_start[j + 1]]`.
+    pub frame_offsets: Vec<FrameOffset>,
+    /// See `frame_offsets` (one more entry than joints).
+    pub frame_start: Vec<usize>,
 }
 
 /// Sine and cosine of a constant angle (rad), snapped to exactly 0 / ±1 within
@@ -269,16 +272,19 @@ pub(crate) fn compile(
         None => b = Some(tail),
     }
     let steps: Vec<Step> = joints.iter().map(|(p, c)| make_step(p.kind, p.theta, c)).collect();
-    let frame_offsets = joints
-        .iter()
-        .map(|(p, c)| p.frames.iter().map(|k| frame_offset(k, c)).collect())
-        .collect();
+    let mut frame_offsets = Vec::new();
+    let mut frame_start = vec![0];
+    for (p, c) in &joints {
+        frame_offsets.extend(p.frames.iter().map(|k| frame_offset(k, c)));
+        frame_start.push(frame_offsets.len());
+    }
     Program {
         base: to_cols(&b.unwrap_or(*base)),
         lanes: steps.chunks(CHUNK).map(lanes_of).collect(),
         steps,
         lead_frames,
         frame_offsets,
+        frame_start,
     }
 }
 

@@ -74,8 +74,8 @@ fn aligned<V: Lane, const ROT: u8, const A: bool, const D: bool>(
     let xn = x.madd(c, y.mul(s));
     // y' and −y' directly, so no negation is left for the relabelling
     // (the compiler drops whichever this ROT does not use).
-    let yn = y.madd(c, x.mul(s).neg());
-    let yneg = x.madd(s, y.mul(c).neg());
+    let yn = x.nmadd(s, y.mul(c));
+    let yneg = y.nmadd(c, x.mul(s));
     let mut pn = p;
     if D {
         pn = z.madd(dz, pn);
@@ -99,7 +99,7 @@ fn general<V: Lane>([x, y, z, p]: [V; 4], c: V, s: V, k: &[[f64; 4]; 4], dz: V) 
     // No closures here or anywhere on these paths: a closure does not inherit
     // the caller's target features, so it would not inline into the kernels.
     let xn = x.madd(c, y.mul(s));
-    let yn = y.madd(c, x.mul(s).neg());
+    let yn = x.nmadd(s, y.mul(c));
     let mut out = [z; 4];
     for j in 0..3 {
         let [k0, k1, k2, _] = k[j];
