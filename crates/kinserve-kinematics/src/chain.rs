@@ -220,8 +220,9 @@ impl Chain {
     /// Tool poses for many configurations at once, on the [best kernel](Kernel::best).
     /// `q` holds the configurations back to back (`dof` values each; a trailing
     /// partial configuration is ignored), and `out` receives one pose per
-    /// configuration (up to its length). Structure-of-arrays over blocks of 8
-    /// poses. Unchecked like [`Chain::forward`]. Allocates nothing.
+    /// configuration (up to its length; a chain without movable joints fills all
+    /// of `out` with its one pose). Structure-of-arrays over blocks of 8 poses.
+    /// Unchecked like [`Chain::forward`]. Allocates nothing.
     pub fn forward_batch(&self, q: &[f64], angle_scale: f64, out: &mut [Transform]) {
         self.forward_batch_with(Kernel::best(), q, angle_scale, out)
     }

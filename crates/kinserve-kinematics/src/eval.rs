@@ -278,6 +278,8 @@ unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
 ) {
     let dof = p.steps.len();
     if dof == 0 {
+        // No joint: every (empty) configuration has the one constant pose.
+        out.fill(from_cols(&p.base));
         return;
     }
     let count = (q.len() / dof).min(out.len());
