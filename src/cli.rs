@@ -1,4 +1,5 @@
-//! The `kinserve` command line: `serve` (default), `validate`, `fk`, `healthcheck`.
+//! The `kinserve` command line: `serve` (default), `validate`, `fk`, `bench`
+//! (in [`crate::bench`]), `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -18,6 +19,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Serve(c)) => serve(*c),
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
+        Some(Command::Bench(args)) => crate::bench::run(&args),
         Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
     }
 }

@@ -33,6 +33,8 @@ pub enum Command {
     },
     /// Compute FK once and print it as JSON (the REST API's `fk` response).
     Fk(FkArgs),
+    /// Time FK of a model on this machine: single pose, with every frame, batched.
+    Bench(BenchArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
     /// Used as the container HEALTHCHECK (the image has no curl).
     Healthcheck {
@@ -79,6 +81,35 @@ pub struct FkArgs {
     /// Where built-in robots live.
     #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
     pub robots_dir: PathBuf,
+}
+
+/// Arguments of `kinserve bench`.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
+pub struct BenchArgs {
+    /// A robot from the robots directory, by name.
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// A robot model file (JSON).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Configurations in the batch figure.
+    #[arg(long, default_value_t = 10_000, value_parser = parse_batch)]
+    pub batch: usize,
+    /// Print `{"robot", "simd", "single_ns", "frames_ns", "batch_ns_per_pose"}` (ns) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Where built-in robots live.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
+    pub robots_dir: PathBuf,
+}
+
+/// `--batch` of `kinserve bench`: 1 to 1,000,000 configurations.
+fn parse_batch(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n @ 1..=1_000_000) => Ok(n),
+        _ => Err(format!("not a batch size from 1 to 1000000: '{s}'")),
+    }
 }
 
 /// Log output format.
