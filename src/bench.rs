@@ -79,7 +79,10 @@ fn model_path(args: &BenchArgs) -> Result<PathBuf, String> {
             if path.exists() {
                 Ok(path)
             } else {
-                Err(format!("no robot '{name}' in {}", args.robots_dir.display()))
+                Err(format!(
+                    "no robot '{name}' in {}",
+                    args.robots_dir.display()
+                ))
             }
         }
         (None, Some(p)) => Ok(p.clone()),

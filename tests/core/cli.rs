@@ -114,10 +114,7 @@ fn validate_passes_every_robot_file_and_reports_bad_ones_by_field() {
 
 #[test]
 fn bench_prints_positive_finite_figures_and_the_kernel() {
-    for source in [
-        ["--robot", "puma560"],
-        ["--model", "robots/panda.json"],
-    ] {
+    for source in [["--robot", "puma560"], ["--model", "robots/panda.json"]] {
         let out = kinserve()
             .arg("bench")
             .args(source)

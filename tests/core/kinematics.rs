@@ -205,15 +205,29 @@ fn aligned_tables_match_the_plain_product_on_every_kernel() {
                         ("frames", framed),
                     ] {
                         let e = t.max_abs_diff(&reference);
-                        assert!(e <= FAST_PATH_TOL, "{convention:?} case {case} {kernel:?} {what}: {e:e}");
+                        assert!(
+                            e <= FAST_PATH_TOL,
+                            "{convention:?} case {case} {kernel:?} {what}: {e:e}"
+                        );
                     }
                     assert_eq!(frames.len(), chain.rows() + 1);
                     assert_frames_match_the_plain_products(&chain, q, &frames);
+                    let mut called = Vec::new();
+                    let t =
+                        chain.forward_frames_into_with(kernel, q, 1.0, &mut |f| called.push(*f));
+                    assert_eq!(
+                        (t, &called),
+                        (framed, &frames),
+                        "callback and slice frames agree"
+                    );
                 }
             }
         }
     }
-    assert!(aligned > 1000, "the generator should produce aligned steps, got {aligned}");
+    assert!(
+        aligned > 1000,
+        "the generator should produce aligned steps, got {aligned}"
+    );
 }
 
 /// Frame `i` is `base · A_1 ⋯ A_i` (no tool), by the textbook link matrices.
@@ -275,6 +289,10 @@ fn missing_and_extra_joint_values_count_as_zero_and_are_ignored() {
             let (t, frames) = chain.forward_frames_with(kernel, short, 1.0);
             assert!(t.max_abs_diff(&expect) <= FAST_PATH_TOL);
             assert_eq!(frames.len(), chain.rows() + 1);
+            // A slice too short gets the first frames only; the pose is still right.
+            let mut two = [Transform::IDENTITY; 2];
+            let t2 = chain.forward_frames_to_with(kernel, short, 1.0, &mut two);
+            assert_eq!((t2, two), (t, [frames[0], frames[1]]));
         }
     }
 }
@@ -327,11 +345,17 @@ fn non_finite_joint_values_give_non_finite_poses_like_the_plain_product() {
         let q = [0.1, bad, 0.3, 0.2, 0.5];
         assert!(!forward_reference(&chain, &q, 1.0).translation[0].is_finite());
         for kernel in supported_kernels() {
-            assert!(!chain.forward_with(kernel, &q, 1.0).translation[0].is_finite(), "{kernel:?}");
+            assert!(
+                !chain.forward_with(kernel, &q, 1.0).translation[0].is_finite(),
+                "{kernel:?}"
+            );
             let mut out = vec![Transform::IDENTITY; 9];
             let qs: Vec<f64> = q.iter().cycle().take(9 * 5).copied().collect();
             chain.forward_batch_with(kernel, &qs, 1.0, &mut out);
-            assert!(out.iter().all(|t| !t.translation[0].is_finite()), "{kernel:?}");
+            assert!(
+                out.iter().all(|t| !t.translation[0].is_finite()),
+                "{kernel:?}"
+            );
         }
     }
 }

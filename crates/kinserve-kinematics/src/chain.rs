@@ -168,12 +168,14 @@ impl Chain {
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
     #[inline]
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
-        eval::forward_on(Kernel::best(), &self.program, q, angle_scale)
+        // SAFETY: `Kernel::best` only returns a kernel this CPU supports.
+        unsafe { eval::forward_on(Kernel::best(), &self.program, q, angle_scale) }
     }
 
     /// [`Chain::forward`] on a given kernel (the portable one if the CPU lacks it).
     pub fn forward_with(&self, kernel: Kernel, q: &[f64], angle_scale: f64) -> Transform {
-        eval::forward_on(kernel, &self.program, q, angle_scale)
+        // SAFETY: `or_portable` only returns a kernel this CPU supports.
+        unsafe { eval::forward_on(kernel.or_portable(), &self.program, q, angle_scale) }
     }
 
     /// Like [`Chain::forward`], and calls `frame` with `^world T_i` for every frame
@@ -185,7 +187,7 @@ impl Chain {
         angle_scale: f64,
         frame: &mut dyn FnMut(&Transform),
     ) -> Transform {
-        eval::forward_frames_on(Kernel::best(), &self.program, q, angle_scale, frame)
+        self.forward_frames_into_with(Kernel::best(), q, angle_scale, frame)
     }
 
     /// [`Chain::forward_frames_into`] on a given kernel (the portable one if the CPU lacks it).
@@ -196,10 +198,55 @@ impl Chain {
         angle_scale: f64,
         frame: &mut dyn FnMut(&Transform),
     ) -> Transform {
-        eval::forward_frames_on(kernel, &self.program, q, angle_scale, frame)
+        let mut sink = eval::Sink::Burst(eval::Burst::new(frame));
+        // SAFETY: `or_portable` only returns a kernel this CPU supports.
+        unsafe {
+            eval::forward_frames_on(
+                kernel.or_portable(),
+                &self.program,
+                q,
+                angle_scale,
+                &mut sink,
+            )
+        }
     }
 
-    /// Tool pose and every frame (see [`Chain::forward_frames_into`]).
+    /// Like [`Chain::forward`], and writes `^world T_i` for every frame
+    /// `i = 0..=rows` into `frames[i]` (0 is the base frame, `rows` the flange;
+    /// frames beyond the slice's end are not written). Returns the tool pose.
+    /// No callback per frame, so cheaper than [`Chain::forward_frames_into`].
+    /// Allocates nothing.
+    pub fn forward_frames_to(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        frames: &mut [Transform],
+    ) -> Transform {
+        self.forward_frames_to_with(Kernel::best(), q, angle_scale, frames)
+    }
+
+    /// [`Chain::forward_frames_to`] on a given kernel (the portable one if the CPU lacks it).
+    pub fn forward_frames_to_with(
+        &self,
+        kernel: Kernel,
+        q: &[f64],
+        angle_scale: f64,
+        frames: &mut [Transform],
+    ) -> Transform {
+        let mut sink = eval::Sink::Slice(eval::SliceSink::new(frames));
+        // SAFETY: `or_portable` only returns a kernel this CPU supports.
+        unsafe {
+            eval::forward_frames_on(
+                kernel.or_portable(),
+                &self.program,
+                q,
+                angle_scale,
+                &mut sink,
+            )
+        }
+    }
+
+    /// Tool pose and every frame (see [`Chain::forward_frames_to`]).
     pub fn forward_frames(&self, q: &[f64], angle_scale: f64) -> (Transform, Vec<Transform>) {
         self.forward_frames_with(Kernel::best(), q, angle_scale)
     }
@@ -211,9 +258,8 @@ impl Chain {
         q: &[f64],
         angle_scale: f64,
     ) -> (Transform, Vec<Transform>) {
-        let mut frames = Vec::with_capacity(self.rows.len() + 1);
-        let tool =
-            self.forward_frames_into_with(kernel, q, angle_scale, &mut |t| frames.push(*t));
+        let mut frames = vec![Transform::IDENTITY; self.rows.len() + 1];
+        let tool = self.forward_frames_to_with(kernel, q, angle_scale, &mut frames);
         (tool, frames)
     }
 
@@ -235,6 +281,7 @@ impl Chain {
         angle_scale: f64,
         out: &mut [Transform],
     ) {
-        eval::forward_batch_on(kernel, &self.program, q, angle_scale, out)
+        // SAFETY: `or_portable` only returns a kernel this CPU supports.
+        unsafe { eval::forward_batch_on(kernel.or_portable(), &self.program, q, angle_scale, out) }
     }
 }

@@ -21,9 +21,9 @@
 use std::mem::MaybeUninit;
 
 use crate::kernel::Kernel;
+use crate::lane::{Arr, Lane, Lane8};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{Ymm, Ymm2, Zmm};
-use crate::lane::{Arr, Lane, Lane8};
 use crate::program::{CHUNK, Cols, FrameOffset, Lanes, Program, from_cols};
 use crate::sincos::{madd, sincos_lanes, sincos_poly_lanes};
 use crate::step::{self, State};
@@ -92,7 +92,12 @@ pub(crate) trait Col4: Lane {
     /// `out` must be valid for writes of one `Transform` (it may be uninitialised).
     #[inline(always)]
     unsafe fn store_transform(cols: &[Self; 4], out: *mut Transform) {
-        let t = from_cols(&[cols[0].store(), cols[1].store(), cols[2].store(), cols[3].store()]);
+        let t = from_cols(&[
+            cols[0].store(),
+            cols[1].store(),
+            cols[2].store(),
+            cols[3].store(),
+        ]);
         // SAFETY: by this function's contract.
         unsafe { out.write(t) };
     }
@@ -132,7 +137,14 @@ impl Col4 for Ymm {
 #[inline(always)]
 unsafe fn load_cols<V: Col4>(c: &Cols) -> [V; 4] {
     // SAFETY: forwarded from this function's own contract.
-    unsafe { [V::load(&c[0]), V::load(&c[1]), V::load(&c[2]), V::load(&c[3])] }
+    unsafe {
+        [
+            V::load(&c[0]),
+            V::load(&c[1]),
+            V::load(&c[2]),
+            V::load(&c[3]),
+        ]
+    }
 }
 
 #[inline(always)]
@@ -156,7 +168,13 @@ unsafe fn forward<const FMA: bool, V: Col4>(p: &Program, q: &[f64], scale: f64) 
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
         let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
         for (k, st) in steps.iter().enumerate().take(CHUNK) {
-            step::apply::<V, 1>(st, &mut m, V::splat(v.c[k]), V::splat(v.s[k]), V::splat(v.dz[k]));
+            step::apply::<V, 1>(
+                st,
+                &mut m,
+                V::splat(v.c[k]),
+                V::splat(v.s[k]),
+                V::splat(v.dz[k]),
+            );
         }
     }
     transform_of(&m[0])
@@ -182,7 +200,10 @@ fn mul_cols<V: Lane>(n: &[V; 4], k: &Cols) -> [V; 4] {
     for j in 0..4 {
         let [a, b, c, _] = k[j];
         let last = if j == 3 { n[3] } else { V::splat(0.0) };
-        out[j] = n[0].madd(V::splat(a), n[1].madd(V::splat(b), n[2].madd(V::splat(c), last)));
+        out[j] = n[0].madd(
+            V::splat(a),
+            n[1].madd(V::splat(b), n[2].madd(V::splat(c), last)),
+        );
     }
     out
 }
@@ -191,30 +212,113 @@ fn mul_cols<V: Lane>(n: &[V; 4], k: &Cols) -> [V; 4] {
 #[inline(always)]
 fn translate<V: Lane>(n: &[V; 4], t: &[f64; 3]) -> [V; 4] {
     let [a, b, c] = *t;
-    let p = n[0].madd(V::splat(a), n[1].madd(V::splat(b), n[2].madd(V::splat(c), n[3])));
+    let p = n[0].madd(
+        V::splat(a),
+        n[1].madd(V::splat(b), n[2].madd(V::splat(c), n[3])),
+    );
     [n[0], n[1], n[2], p]
 }
 
-/// Tool pose, calling `frame` with every frame (see [`crate::Chain::forward_frames_into`]).
+/// Where the frames path puts each frame.
+pub(crate) trait FrameSink {
+    /// Where the next frame goes: valid for writes of one `Transform`.
+    fn next_slot(&mut self) -> *mut Transform;
+    /// Called once after the last frame.
+    fn finish(&mut self);
+}
+
+/// Frames handed to the callback at a time by [`Burst`].
+const FRAME_BURST: usize = 16;
+
+/// Collects frames and hands them to a callback in bursts, so the vector state
+/// of the frames path is not live across the opaque calls (a call per frame
+/// cost ~60 % more: spills around every call). Uninitialised, because
+/// initialising 16 poses per evaluation costs more than it saves.
+pub(crate) struct Burst<'a> {
+    buf: [MaybeUninit<Transform>; FRAME_BURST],
+    n: usize,
+    frame: &'a mut dyn FnMut(&Transform),
+}
+
+impl<'a> Burst<'a> {
+    pub(crate) fn new(frame: &'a mut dyn FnMut(&Transform)) -> Self {
+        Burst {
+            buf: [const { MaybeUninit::uninit() }; FRAME_BURST],
+            n: 0,
+            frame,
+        }
+    }
+
+    #[inline(never)]
+    fn flush(&mut self) {
+        for f in &self.buf[..self.n] {
+            // SAFETY: slots `0..n` were handed out by `next_slot` and written by the
+            // frames path before the next call (its contract).
+            (self.frame)(unsafe { f.assume_init_ref() });
+        }
+        self.n = 0;
+    }
+}
+
+impl FrameSink for Burst<'_> {
+    #[inline(always)]
+    fn next_slot(&mut self) -> *mut Transform {
+        if self.n == FRAME_BURST {
+            self.flush();
+        }
+        self.n += 1;
+        self.buf[self.n - 1].as_mut_ptr()
+    }
+    fn finish(&mut self) {
+        self.flush();
+    }
+}
+
+/// Writes frames into a slice, in order; frames beyond its end are dropped.
+pub(crate) struct SliceSink<'a> {
+    out: &'a mut [Transform],
+    n: usize,
+    spare: MaybeUninit<Transform>,
+}
+
+impl<'a> SliceSink<'a> {
+    pub(crate) fn new(out: &'a mut [Transform]) -> Self {
+        SliceSink {
+            out,
+            n: 0,
+            spare: MaybeUninit::uninit(),
+        }
+    }
+}
+
+impl FrameSink for SliceSink<'_> {
+    #[inline(always)]
+    fn next_slot(&mut self) -> *mut Transform {
+        let slot = match self.out.get_mut(self.n) {
+            Some(t) => t as *mut Transform,
+            None => self.spare.as_mut_ptr(),
+        };
+        self.n += 1;
+        slot
+    }
+    fn finish(&mut self) {}
+}
+
+/// Tool pose, putting every frame into `sink` (see [`crate::Chain::forward_frames_into`]).
 ///
 /// # Safety
 /// See [`Col4::load`].
 #[inline(always)]
-unsafe fn forward_frames<const FMA: bool, V: Col4>(
+unsafe fn forward_frames<const FMA: bool, V: Col4, S: FrameSink>(
     p: &Program,
     q: &[f64],
     scale: f64,
-    frame: &mut dyn FnMut(&Transform),
+    sink: &mut S,
 ) -> Transform {
     for f in &p.lead_frames {
-        frame(f);
+        // SAFETY: `next_slot` is valid for writes of one `Transform`.
+        unsafe { sink.next_slot().write(*f) };
     }
-    // Frames are collected and handed over in bursts: the vector state is then
-    // not live across the opaque callback calls, which made a call per frame
-    // cost ~60 % more (spills around every call). Uninitialised, because
-    // initialising 16 poses per call costs more than it saves.
-    let mut buf = [const { MaybeUninit::<Transform>::uninit() }; FRAME_BURST];
-    let mut n = 0;
     // SAFETY: forwarded from this function's own contract.
     let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
@@ -223,7 +327,13 @@ unsafe fn forward_frames<const FMA: bool, V: Col4>(
             let j = ci * CHUNK + k;
             let offs = &p.frame_offsets[p.frame_start[j]..p.frame_start[j + 1]];
             let prev = m[0];
-            step::apply::<V, 1>(st, &mut m, V::splat(v.c[k]), V::splat(v.s[k]), V::splat(v.dz[k]));
+            step::apply::<V, 1>(
+                st,
+                &mut m,
+                V::splat(v.c[k]),
+                V::splat(v.s[k]),
+                V::splat(v.dz[k]),
+            );
             for off in offs {
                 let t = match off {
                     FrameOffset::AfterStep => m[0],
@@ -234,35 +344,13 @@ unsafe fn forward_frames<const FMA: bool, V: Col4>(
                         mul_cols(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), kc)
                     }
                 };
-                if n == FRAME_BURST {
-                    // SAFETY: slots 0..n were written below.
-                    unsafe { flush(&buf[..n], frame) };
-                    n = 0;
-                }
-                // SAFETY: `buf[n]` is valid for writes of one `Transform`.
-                unsafe { V::store_transform(&t, buf[n].as_mut_ptr()) };
-                n += 1;
+                // SAFETY: `next_slot` is valid for writes of one `Transform`.
+                unsafe { V::store_transform(&t, sink.next_slot()) };
             }
         }
     }
-    // SAFETY: slots 0..n were written above.
-    unsafe { flush(&buf[..n], frame) };
+    sink.finish();
     transform_of(&m[0])
-}
-
-/// Frames handed to the callback at a time by the frames path.
-const FRAME_BURST: usize = 16;
-
-/// Calls `frame` with each of `frames`, in order.
-///
-/// # Safety
-/// Every element of `frames` must be initialised.
-#[inline(never)]
-unsafe fn flush(frames: &[MaybeUninit<Transform>], frame: &mut dyn FnMut(&Transform)) {
-    for f in frames {
-        // SAFETY: initialised, by this function's contract.
-        frame(unsafe { f.assume_init_ref() });
-    }
 }
 
 /// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
@@ -285,7 +373,10 @@ unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
     let count = (q.len() / dof).min(out.len());
     let blocks = count / LANES;
     for b in 0..blocks {
-        let (qb, ob) = (&q[b * LANES * dof..(b + 1) * LANES * dof], &mut out[b * LANES..(b + 1) * LANES]);
+        let (qb, ob) = (
+            &q[b * LANES * dof..(b + 1) * LANES * dof],
+            &mut out[b * LANES..(b + 1) * LANES],
+        );
         // SAFETY: forwarded from this function's own contract.
         if !unsafe { batch_block::<FMA, V>(p, qb, scale, ob) } {
             // Rare: an angle beyond the polynomial's range; redo these poses one
@@ -407,10 +498,15 @@ macro_rules! instantiate {
                 p: &Program,
                 q: &[f64],
                 scale: f64,
-                frame: &mut dyn FnMut(&Transform),
+                sink: &mut Sink<'_>,
             ) -> Transform {
                 // SAFETY: as in `forward`.
-                unsafe { super::forward_frames::<true, Ymm>(p, q, scale, frame) }
+                unsafe {
+                    match sink {
+                        Sink::Burst(s) => super::forward_frames::<true, Ymm, _>(p, q, scale, s),
+                        Sink::Slice(s) => super::forward_frames::<true, Ymm, _>(p, q, scale, s),
+                    }
+                }
             }
             )?
 
@@ -426,17 +522,20 @@ macro_rules! instantiate {
 instantiate!(avx2, "avx2,fma", Ymm2, forward_frames);
 instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
 
-/// Single pose on `kernel` (the portable one if the CPU lacks it).
+/// Single pose on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
 #[inline]
-pub(crate) fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
-    match kernel.or_portable() {
+pub(crate) unsafe fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
+    match kernel {
         // SAFETY: `Arr` needs no target feature.
         Kernel::Portable => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward(p, q, scale) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        // SAFETY: the caller guarantees the CPU supports Avx512: every feature enabled.
         Kernel::Avx512 => unsafe { avx512::forward(p, q, scale) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.
@@ -444,37 +543,68 @@ pub(crate) fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> 
     }
 }
 
-/// Frames on `kernel` (the portable one if the CPU lacks it).
-pub(crate) fn forward_frames_on(
+/// Where the frames path puts the frames (one dispatch per evaluation).
+pub(crate) enum Sink<'a> {
+    /// To a callback, in bursts.
+    Burst(Burst<'a>),
+    /// Into a slice.
+    Slice(SliceSink<'a>),
+}
+
+/// The portable frames path into `sink`.
+fn frames_portable(p: &Program, q: &[f64], scale: f64, sink: &mut Sink<'_>) -> Transform {
+    // SAFETY: `Arr` needs no target feature.
+    unsafe {
+        match sink {
+            Sink::Burst(s) => forward_frames::<false, Arr<false, 4>, _>(p, q, scale, s),
+            Sink::Slice(s) => forward_frames::<false, Arr<false, 4>, _>(p, q, scale, s),
+        }
+    }
+}
+
+/// Frames on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
+pub(crate) unsafe fn forward_frames_on(
     kernel: Kernel,
     p: &Program,
     q: &[f64],
     scale: f64,
-    frame: &mut dyn FnMut(&Transform),
+    sink: &mut Sink<'_>,
 ) -> Transform {
-    match kernel.or_portable() {
-        // SAFETY: `Arr` needs no target feature.
-        Kernel::Portable => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },
+    match kernel {
+        Kernel::Portable => frames_portable(p, q, scale, sink),
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx2Fma or Avx512, so the CPU supports
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma or Avx512, so
         // avx2 and fma (Avx512 implies both; see `instantiate!` for why it runs this copy).
-        Kernel::Avx2Fma | Kernel::Avx512 => unsafe { avx2::forward_frames(p, q, scale, frame) },
+        Kernel::Avx2Fma | Kernel::Avx512 => unsafe { avx2::forward_frames(p, q, scale, sink) },
         #[cfg(not(target_arch = "x86_64"))]
-        // SAFETY: `Arr` needs no target feature.
-        _ => unsafe { forward_frames::<false, Arr<false, 4>>(p, q, scale, frame) },
+        _ => frames_portable(p, q, scale, sink),
     }
 }
 
-/// Batch on `kernel` (the portable one if the CPU lacks it).
-pub(crate) fn forward_batch_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
-    match kernel.or_portable() {
+/// Batch on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
+pub(crate) unsafe fn forward_batch_on(
+    kernel: Kernel,
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) {
+    match kernel {
         // SAFETY: `Arr` needs no target feature.
-        Kernel::Portable => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out) },
+        Kernel::Portable => unsafe {
+            forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out)
+        },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward_batch(p, q, scale, out) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        // SAFETY: the caller guarantees the CPU supports Avx512: every feature enabled.
         Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.

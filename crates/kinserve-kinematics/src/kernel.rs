@@ -2,6 +2,8 @@
 //! time (std caches the CPUID answer), with a portable path everywhere.
 //! Depends on nothing else in the crate.
 
+use std::sync::atomic::{AtomicU8, Ordering};
+
 /// Which compiled kernel evaluates a chain. [`Kernel::best`] is what the
 /// evaluators without `_with` use; every kernel computes the same product
 /// (within 1e-12, tested) and any kernel may be asked for explicitly, e.g. to
@@ -21,15 +23,15 @@ impl Kernel {
     /// Every kernel, narrowest first.
     pub const ALL: [Kernel; 3] = [Kernel::Portable, Kernel::Avx2Fma, Kernel::Avx512];
 
-    /// The widest kernel this CPU supports (detected at run time, cached by std).
+    /// The widest kernel this CPU supports (detected once, then one relaxed
+    /// atomic load: this is on every evaluation's path).
     #[inline]
     pub fn best() -> Kernel {
-        if Kernel::Avx512.is_supported() {
-            Kernel::Avx512
-        } else if Kernel::Avx2Fma.is_supported() {
-            Kernel::Avx2Fma
-        } else {
-            Kernel::Portable
+        match BEST.load(Ordering::Relaxed) {
+            1 => Kernel::Portable,
+            2 => Kernel::Avx2Fma,
+            3 => Kernel::Avx512,
+            _ => detect_best(),
         }
     }
 
@@ -61,6 +63,22 @@ impl Kernel {
             Kernel::Portable
         }
     }
+}
+
+/// [`Kernel::best`] as 1, 2, 3 (portable, AVX2+FMA, AVX-512); 0 before the first call.
+static BEST: AtomicU8 = AtomicU8::new(0);
+
+#[cold]
+fn detect_best() -> Kernel {
+    let (kernel, code) = if Kernel::Avx512.is_supported() {
+        (Kernel::Avx512, 3)
+    } else if Kernel::Avx2Fma.is_supported() {
+        (Kernel::Avx2Fma, 2)
+    } else {
+        (Kernel::Portable, 1)
+    };
+    BEST.store(code, Ordering::Relaxed);
+    kernel
 }
 
 /// Whether this CPU has AVX2 and FMA.

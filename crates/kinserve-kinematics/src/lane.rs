@@ -110,9 +110,8 @@ mod ymm {
     use crate::transform::Transform;
     use std::arch::x86_64::{
         __m256d, _mm_store_sd, _mm_storeu_pd, _mm256_castpd256_pd128, _mm256_extractf128_pd,
-        _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_loadu_pd, _mm256_mul_pd,
-        _mm256_permute2f128_pd, _mm256_set1_pd, _mm256_storeu_pd, _mm256_unpackhi_pd,
-        _mm256_unpacklo_pd, _mm256_xor_pd,
+        _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_permute2f128_pd,
+        _mm256_set1_pd, _mm256_storeu_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd, _mm256_xor_pd,
     };
 
     /// Four doubles in one AVX register, with fused multiply-add.
@@ -249,8 +248,8 @@ mod ymm {
 mod zmm {
     use super::{Lane, Lane8};
     use std::arch::x86_64::{
-        __m512d, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd,
-        _mm512_set1_pd, _mm512_storeu_pd, _mm512_xor_pd,
+        __m512d, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd, _mm512_set1_pd,
+        _mm512_storeu_pd, _mm512_xor_pd,
     };
 
     /// Eight doubles in one AVX-512 register, with fused multiply-add.

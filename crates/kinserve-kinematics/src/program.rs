@@ -271,7 +271,10 @@ pub(crate) fn compile(
         Some(p) => joints.push((p, tail)),
         None => b = Some(tail),
     }
-    let steps: Vec<Step> = joints.iter().map(|(p, c)| make_step(p.kind, p.theta, c)).collect();
+    let steps: Vec<Step> = joints
+        .iter()
+        .map(|(p, c)| make_step(p.kind, p.theta, c))
+        .collect();
     let mut frame_offsets = Vec::new();
     let mut frame_start = vec![0];
     for (p, c) in &joints {

@@ -26,14 +26,12 @@ pub(crate) type State<V, const R: usize> = [[V; 4]; R];
 #[inline(always)]
 pub(crate) fn apply<V: Lane, const R: usize>(step: &Step, m: &mut State<V, R>, c: V, s: V, dz: V) {
     macro_rules! aligned {
-        ($rot:expr, $a:expr, $d:expr) => {
-            {
-                let a = V::splat(step.c[3][0]);
-                for row in m.iter_mut() {
-                    *row = aligned::<V, { $rot }, $a, $d>(*row, c, s, a, dz);
-                }
+        ($rot:expr, $a:expr, $d:expr) => {{
+            let a = V::splat(step.c[3][0]);
+            for row in m.iter_mut() {
+                *row = aligned::<V, { $rot }, $a, $d>(*row, c, s, a, dz);
             }
-        };
+        }};
     }
     match step.kind {
         0 => aligned!(ROT_0, false, false),
