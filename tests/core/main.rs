@@ -2,6 +2,7 @@
 mod cli;
 mod closed_forms;
 mod fuzz_corpus;
+mod jacobian;
 mod kinematics;
 mod model;
 mod properties;
