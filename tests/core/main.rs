@@ -2,6 +2,7 @@
 mod cli;
 mod closed_forms;
 mod fuzz_corpus;
+mod ik;
 mod jacobian;
 mod kinematics;
 mod model;

@@ -118,6 +118,33 @@ pub struct IkSolver<'a> {
     reach: f64,
 }
 
+/// The buffers of one solve, allocated once.
+#[derive(Clone, Debug)]
+struct Work {
+    q: Vec<f64>,
+    trial_q: Vec<f64>,
+    step: Vec<f64>,
+    cur: Eval,
+    trial: Eval,
+}
+
+impl Work {
+    fn new(n: usize) -> Work {
+        let eval = || Eval {
+            columns: vec![[0.0; 6]; n],
+            error: [0.0; 6],
+            cost: f64::INFINITY,
+        };
+        Work {
+            q: vec![0.0; n],
+            trial_q: vec![0.0; n],
+            step: vec![0.0; n],
+            cur: eval(),
+            trial: eval(),
+        }
+    }
+}
+
 /// One evaluated configuration.
 #[derive(Clone, Debug)]
 struct Eval {
@@ -210,24 +237,25 @@ impl<'a> IkSolver<'a> {
             None => self.bounds.iter().map(|b| self.middle(*b)).collect(),
         };
         let mut rng = Rng(opts.rng_seed);
-        let mut q = reference.clone();
-        self.clamp(&mut q);
+        let mut w = Work::new(n);
+        w.q.copy_from_slice(&reference);
+        self.clamp(&mut w.q);
         let mut best: Option<(Vec<f64>, f64)> = None;
         let mut iterations = 0;
         let mut attempts = 0;
         loop {
             attempts += 1;
-            let (done, cost) = self.attempt(target, &mut q, opts, &mut iterations);
+            let (done, cost) = self.attempt(target, &mut w, opts, &mut iterations);
             // A converged attempt wins over any lower-cost unconverged one.
             let cost = if done { f64::NEG_INFINITY } else { cost };
             if best.as_ref().is_none_or(|(_, c)| cost < *c) {
-                best = Some((q.clone(), cost));
+                best = Some((w.q.clone(), cost));
             }
             let out_of_time = opts.deadline.is_some_and(|d| Instant::now() >= d);
             if done || attempts > opts.restarts || out_of_time {
                 break;
             }
-            self.random_start(&mut q, &mut rng);
+            self.random_start(&mut w.q, &mut rng);
         }
         let mut q = best.map(|(q, _)| q).unwrap_or(reference.clone());
         self.near_reference(&mut q, &reference);
@@ -247,47 +275,39 @@ impl<'a> IkSolver<'a> {
         }
     }
 
-    /// One damped-least-squares run from `q` (updated in place to the best
+    /// One damped-least-squares run from `w.q` (updated in place to the best
     /// configuration it reached). Returns whether it converged and its cost.
     fn attempt(
         &self,
         target: &Transform,
-        q: &mut Vec<f64>,
+        w: &mut Work,
         opts: &IkOptions,
         iterations: &mut u32,
     ) -> (bool, f64) {
-        let mut cur = self.eval(target, q, opts.position_only);
-        let mut trial_q = q.clone();
+        self.eval(target, &w.q, opts.position_only, &mut w.cur);
         let mut lambda = LAMBDA_START;
         let mut slow = 0;
         for _ in 0..opts.max_iterations {
-            if self.converged(&cur, opts) {
-                return (true, cur.cost);
+            if self.converged(&w.cur, opts) {
+                return (true, w.cur.cost);
             }
             if opts.deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
             }
             *iterations += 1;
-            let Some(step) = self.step(&cur, lambda, opts.position_only) else {
-                lambda *= 10.0;
-                if lambda > LAMBDA_MAX {
-                    break;
+            let moved = self.step(&w.cur, lambda, opts.position_only, &mut w.step);
+            if moved {
+                for ((t, x), d) in w.trial_q.iter_mut().zip(&w.q).zip(&w.step) {
+                    *t = x + d;
                 }
-                continue;
-            };
-            for ((t, x), d) in trial_q.iter_mut().zip(q.iter()).zip(&step) {
-                *t = x + d;
+                self.clamp(&mut w.trial_q);
+                self.eval(target, &w.trial_q, opts.position_only, &mut w.trial);
             }
-            self.clamp(&mut trial_q);
-            let trial = self.eval(target, &trial_q, opts.position_only);
-            if trial.cost < cur.cost {
-                slow = if trial.cost > SLOW_RATIO.mul_add(-cur.cost, cur.cost) {
-                    slow + 1
-                } else {
-                    0
-                };
-                q.copy_from_slice(&trial_q);
-                cur = trial;
+            if moved && w.trial.cost < w.cur.cost {
+                let slow_step = w.trial.cost > SLOW_RATIO.mul_add(-w.cur.cost, w.cur.cost);
+                slow = if slow_step { slow + 1 } else { 0 };
+                std::mem::swap(&mut w.q, &mut w.trial_q);
+                std::mem::swap(&mut w.cur, &mut w.trial);
                 lambda = (lambda / 10.0).max(LAMBDA_MIN);
                 if slow >= SLOW_STEPS {
                     break;
@@ -299,7 +319,7 @@ impl<'a> IkSolver<'a> {
                 }
             }
         }
-        (self.converged(&cur, opts), cur.cost)
+        (self.converged(&w.cur, opts), w.cur.cost)
     }
 
     fn converged(&self, e: &Eval, opts: &IkOptions) -> bool {
@@ -307,12 +327,13 @@ impl<'a> IkSolver<'a> {
             && (opts.position_only || norm3(&e.error[3..]) <= opts.tolerance)
     }
 
-    /// The damped step `Δq = Jᵀ (J Jᵀ + λ·s·I)⁻¹ e`, with `s` the mean
-    /// diagonal of `J Jᵀ` (so λ is unit-free); `None` if the system is not
-    /// positive definite (only for a zero Jacobian and tiny λ).
-    fn step(&self, e: &Eval, lambda: f64, position_only: bool) -> Option<Vec<f64>> {
+    /// The damped step `Δq = Jᵀ (J Jᵀ + λ·s·I)⁻¹ e` into `out`, with `s` the
+    /// mean diagonal of `J Jᵀ` (so λ is unit-free). False if the system is
+    /// not positive definite (only for a zero Jacobian and tiny λ).
+    fn step(&self, e: &Eval, lambda: f64, position_only: bool, out: &mut [f64]) -> bool {
         let cols = &e.columns;
-        let y: Vec<f64> = if position_only {
+        let mut y = [0.0; 6];
+        if position_only {
             let mut a = Matrix3::<f64>::zeros();
             for c in cols {
                 let v = Vector3::new(c[0], c[1], c[2]);
@@ -321,7 +342,10 @@ impl<'a> IkSolver<'a> {
             let s = (a.trace() / 3.0).max(f64::MIN_POSITIVE);
             a += Matrix3::identity() * (lambda * s);
             let b = Vector3::new(e.error[0], e.error[1], e.error[2]);
-            a.cholesky()?.solve(&b).iter().copied().collect()
+            let Some(chol) = a.cholesky() else {
+                return false;
+            };
+            y[..3].copy_from_slice(chol.solve(&b).as_slice());
         } else {
             let mut a = Matrix6::<f64>::zeros();
             for c in cols {
@@ -331,30 +355,27 @@ impl<'a> IkSolver<'a> {
             let s = (a.trace() / 6.0).max(f64::MIN_POSITIVE);
             a += Matrix6::identity() * (lambda * s);
             let b = Vector6::from_row_slice(&e.error);
-            a.cholesky()?.solve(&b).iter().copied().collect()
-        };
-        Some(
-            cols.iter()
-                .map(|c| c.iter().zip(&y).map(|(j, y)| j * y).sum())
-                .collect(),
-        )
+            let Some(chol) = a.cholesky() else {
+                return false;
+            };
+            y.copy_from_slice(chol.solve(&b).as_slice());
+        }
+        for (o, c) in out.iter_mut().zip(cols) {
+            *o = c.iter().zip(&y).map(|(j, y)| j * y).sum();
+        }
+        true
     }
 
-    fn eval(&self, target: &Transform, q: &[f64], position_only: bool) -> Eval {
-        let mut columns = vec![[0.0; 6]; self.dof()];
+    /// Pose, Jacobian and error at `q` into `out`.
+    fn eval(&self, target: &Transform, q: &[f64], position_only: bool, out: &mut Eval) {
         let pose = self
             .chain
-            .jacobian_into(q, 1.0, JacobianFrame::Base, &mut columns);
+            .jacobian_into(q, 1.0, JacobianFrame::Base, &mut out.columns);
         let p = sub3(target.translation, pose.translation);
         let w = rotation_error(target, &pose);
-        let error = [p[0], p[1], p[2], w[0], w[1], w[2]];
+        out.error = [p[0], p[1], p[2], w[0], w[1], w[2]];
         let rows = if position_only { 3 } else { 6 };
-        let cost = error[..rows].iter().map(|x| x * x).sum();
-        Eval {
-            columns,
-            error,
-            cost,
-        }
+        out.cost = out.error[..rows].iter().map(|x| x * x).sum();
     }
 
     fn middle(&self, b: Bound) -> f64 {
