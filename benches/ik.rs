@@ -101,11 +101,23 @@ fn quantiles(times: &mut [f64]) -> (f64, f64, f64) {
 fn ik_stats() {
     const N: usize = 500;
     println!("\nIK per solve, {N} random in-limit configurations per arm (µs):");
-    println!("| arm | dof | unseeded converged | median | p90 | p99 | tracking converged | median | p90 | p99 |");
+    println!(
+        "| arm | dof | unseeded converged | median | p90 | p99 | tracking converged | median | p90 | p99 |"
+    );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let arms = [
-        "abb_irb140", "cylindrical_wrist_6dof", "inline_6dof", "kuka_kr5", "puma560",
-        "stanford", "ur3e", "ur5", "ur5e", "ur10e", "ur20", "panda",
+        "abb_irb140",
+        "cylindrical_wrist_6dof",
+        "inline_6dof",
+        "kuka_kr5",
+        "puma560",
+        "stanford",
+        "ur3e",
+        "ur5",
+        "ur5e",
+        "ur10e",
+        "ur20",
+        "panda",
     ];
     let opts = IkOptions::default();
     for name in arms {

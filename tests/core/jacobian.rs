@@ -111,8 +111,15 @@ const FD_TOLERANCE: f64 = 1e-8;
 
 fn reach(chain: &Chain) -> f64 {
     let rows: f64 = chain.dh_rows().map(|r| r.a.abs() + r.d.abs()).sum();
-    let ends = chain.base().translation.iter().map(|x| x.abs()).sum::<f64>()
-        + chain.tool().map_or(0.0, |t| t.translation.iter().map(|x| x.abs()).sum());
+    let ends = chain
+        .base()
+        .translation
+        .iter()
+        .map(|x| x.abs())
+        .sum::<f64>()
+        + chain
+            .tool()
+            .map_or(0.0, |t| t.translation.iter().map(|x| x.abs()).sum());
     (rows + ends).max(1.0)
 }
 
@@ -140,7 +147,10 @@ fn every_robot_matches_central_differences_in_both_frames() {
             }
         }
     }
-    assert!(seen_modified && seen_prismatic, "both conventions and prismatic joints are covered");
+    assert!(
+        seen_modified && seen_prismatic,
+        "both conventions and prismatic joints are covered"
+    );
 }
 
 /// A random chain: 1–8 rows of random kinds (fixed rows included), random
@@ -168,8 +178,16 @@ fn random_chain(rng: &mut Rng, convention: Convention) -> Chain {
     rows[0].kind = JointKind::Revolute;
     let pose = |rng: &mut Rng| {
         Transform::from_translation_rpy(
-            [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)],
-            [rng.range(-3.0, 3.0), rng.range(-1.5, 1.5), rng.range(-3.0, 3.0)],
+            [
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ],
+            [
+                rng.range(-3.0, 3.0),
+                rng.range(-1.5, 1.5),
+                rng.range(-3.0, 3.0),
+            ],
         )
     };
     let base = pose(rng);
@@ -186,7 +204,10 @@ fn random_chains_match_central_differences_in_both_conventions() {
             let q: Vec<f64> = (0..chain.dof()).map(|_| rng.range(-3.0, 3.0)).collect();
             for frame in [JacobianFrame::Base, JacobianFrame::Tool] {
                 let err = worst_fd_error(&chain, &q, frame, reach(&chain));
-                assert!(err <= FD_TOLERANCE, "{convention:?} {frame:?}: {err:e}\n{chain:?}");
+                assert!(
+                    err <= FD_TOLERANCE,
+                    "{convention:?} {frame:?}: {err:e}\n{chain:?}"
+                );
             }
         }
     }
@@ -194,7 +215,10 @@ fn random_chains_match_central_differences_in_both_conventions() {
 
 #[test]
 fn degree_scaled_joint_values_give_columns_per_radian() {
-    let robot = all_robots().into_iter().find(|r| r.name() == "puma560").unwrap();
+    let robot = all_robots()
+        .into_iter()
+        .find(|r| r.name() == "puma560")
+        .unwrap();
     let chain = robot.chain();
     let q_rad = [0.3, -0.4, 0.5, 0.2, -0.7, 1.1];
     let q_deg = q_rad.map(f64::to_degrees);
@@ -248,7 +272,12 @@ fn manipulability_is_sqrt_det_j_jt_and_condition_number_matches_eigenvalues() {
                 );
             }
             let smallest = *m.singular_values.last().unwrap();
-            assert_eq!(m.singular, smallest < SINGULAR_THRESHOLD, "{}", robot.name());
+            assert_eq!(
+                m.singular,
+                smallest < SINGULAR_THRESHOLD,
+                "{}",
+                robot.name()
+            );
         }
     }
 }
@@ -264,7 +293,10 @@ fn known_singular_configurations_are_flagged_and_generic_ones_are_not() {
         .jacobian(&[0.1, -0.5, 0.4, 0.3, 0.0, 0.2], 1.0, JacobianFrame::Base);
     let m = j.measures();
     assert!(m.singular, "{m:?}");
-    assert!(m.manipulability < 1e-12 && m.condition_number > 1e12, "{m:?}");
+    assert!(
+        m.manipulability < 1e-12 && m.condition_number > 1e12,
+        "{m:?}"
+    );
     // UR5e with the elbow straight (q3 = 0): the arm is stretched out.
     let ur = get("ur5e");
     let (_, j) = ur
@@ -278,7 +310,11 @@ fn known_singular_configurations_are_flagged_and_generic_ones_are_not() {
     ] {
         let (_, j) = r.chain().jacobian(&q, 1.0, JacobianFrame::Base);
         let m = j.measures();
-        assert!(!m.singular && m.manipulability > 1e-4, "{}: {m:?}", r.name());
+        assert!(
+            !m.singular && m.manipulability > 1e-4,
+            "{}: {m:?}",
+            r.name()
+        );
     }
 }
 
@@ -292,7 +328,11 @@ fn the_measures_do_not_depend_on_the_frame() {
         let (_, b) = robot.chain().jacobian(&q, 1.0, JacobianFrame::Tool);
         let (ma, mb) = (a.measures(), b.measures());
         for (x, y) in ma.singular_values.iter().zip(&mb.singular_values) {
-            assert!((x - y).abs() <= 1e-9 * ma.singular_values[0], "{}", robot.name());
+            assert!(
+                (x - y).abs() <= 1e-9 * ma.singular_values[0],
+                "{}",
+                robot.name()
+            );
         }
     }
 }

@@ -84,7 +84,12 @@ impl Chain {
     ///
     /// Unchecked like [`Chain::forward`]: the caller guarantees `q.len() == dof`
     /// and finite values.
-    pub fn jacobian(&self, q: &[f64], angle_scale: f64, frame: JacobianFrame) -> (Transform, Jacobian) {
+    pub fn jacobian(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        frame: JacobianFrame,
+    ) -> (Transform, Jacobian) {
         let mut columns = vec![[0.0; 6]; self.dof()];
         let tool = self.jacobian_into(q, angle_scale, frame, &mut columns);
         (tool, Jacobian { columns })

@@ -301,7 +301,9 @@ pub(crate) fn library(case: &Case) -> Success {
             .unwrap_or_else(|e| reject(e.into()));
         (t, Some(f.iter().map(PoseOut::from_transform).collect()))
     } else {
-        let t = robot.fk(&case.joints, &opts).unwrap_or_else(|e| reject(e.into()));
+        let t = robot
+            .fk(&case.joints, &opts)
+            .unwrap_or_else(|e| reject(e.into()));
         (t, None)
     };
     Success {
