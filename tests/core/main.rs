@@ -3,6 +3,7 @@ mod cli;
 mod closed_forms;
 mod fuzz_corpus;
 mod ik;
+mod ik_requests;
 mod jacobian;
 mod kinematics;
 mod model;
