@@ -174,6 +174,10 @@ pub struct ServeConfig {
     /// How long shutdown waits for in-flight requests before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
+    /// Longest time one IK solve may take; past it the best attempt is
+    /// answered (not converged). An IK batch may take half the request timeout.
+    #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_duration)]
+    pub ik_time_limit: Duration,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -196,6 +200,7 @@ impl std::fmt::Debug for ServeConfig {
             header_timeout,
             stream_idle_timeout,
             shutdown_timeout,
+            ik_time_limit,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -215,6 +220,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("header_timeout", header_timeout)
             .field("stream_idle_timeout", stream_idle_timeout)
             .field("shutdown_timeout", shutdown_timeout)
+            .field("ik_time_limit", ik_time_limit)
             .finish()
     }
 }
@@ -254,6 +260,7 @@ impl ServeConfig {
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
             shutdown_timeout: Duration::from_secs(10),
+            ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
     }
 
@@ -285,6 +292,8 @@ impl ServeConfig {
                 max_links: self.max_links,
             },
             max_batch: self.max_batch,
+            ik_time_limit: self.ik_time_limit,
+            ik_batch_time_limit: self.request_timeout / 2,
         }
     }
 }

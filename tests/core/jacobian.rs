@@ -243,18 +243,27 @@ fn manipulability_is_sqrt_det_j_jt_and_condition_number_matches_eigenvalues() {
             let q = random_config(robot, &mut rng);
             let (_, jac) = robot.chain().jacobian(&q, 1.0, JacobianFrame::Base);
             let m = jac.measures();
+            // The definition: the linear rows for up to 3 joints, all six otherwise;
+            // det(J Jᵀ) when J has at least as many columns as rows, det(Jᵀ J) below.
             let a = as_matrix(&jac);
-            // The definition: det(J Jᵀ) for ≥ 6 joints, det(Jᵀ J) below (J Jᵀ is rank-deficient).
-            let gram = if jac.dof() >= 6 {
+            let a = if jac.dof() <= 3 {
+                a.rows(0, 3).into_owned()
+            } else {
+                a
+            };
+            assert_eq!(m.rows, a.nrows());
+            let gram = if jac.dof() >= a.nrows() {
                 &a * a.transpose()
             } else {
                 a.transpose() * &a
             };
-            let expected = gram.determinant().max(0.0).sqrt();
-            let tol = 1e-9 * expected.max(1e-300) + 1e-12;
+            // Compared squared: det(G) is rounded to ~n·ε·Π G_ii (Hadamard's
+            // bound), which near a singularity is far above det(G) itself.
+            let det = gram.determinant();
+            let hadamard: f64 = gram.diagonal().iter().product();
             assert!(
-                (m.manipulability - expected).abs() <= tol.max(1e-9 * m.manipulability),
-                "{}: {} vs √det = {expected}",
+                (m.manipulability.powi(2) - det).abs() <= 1e-12 * hadamard,
+                "{}: {}² vs det = {det}",
                 robot.name(),
                 m.manipulability
             );
@@ -303,6 +312,20 @@ fn known_singular_configurations_are_flagged_and_generic_ones_are_not() {
         .chain()
         .jacobian(&[0.2, -1.0, 0.0, -1.2, 1.3, 0.4], 1.0, JacobianFrame::Tool);
     assert!(j.measures().singular);
+    // The planar 2R arm stretched out (θ2 = 0) cannot move its tip radially;
+    // its manipulability is the textbook a1·a2·|sin θ2| (a1 = 0.4, a2 = 0.3 m).
+    let planar = get("planar_2dof");
+    for t2 in [0.0, 0.3, 1.2, -2.0] {
+        let (_, j) = planar
+            .chain()
+            .jacobian(&[0.7, t2], 1.0, JacobianFrame::Base);
+        let m = j.measures();
+        assert!(
+            (m.manipulability - 0.4 * 0.3 * f64::sin(t2).abs()).abs() <= 1e-15,
+            "{m:?}"
+        );
+        assert_eq!(m.singular, t2 == 0.0, "θ2 = {t2}");
+    }
     // A generic configuration of each is not singular.
     for (r, q) in [
         (puma, [0.1, -0.5, 0.4, 0.3, 0.6, 0.2]),

@@ -164,13 +164,18 @@ impl Chain {
 #[cfg(feature = "nalgebra")]
 pub const SINGULAR_THRESHOLD: f64 = 1e-6;
 
-/// What the singular values `σ_1 ≥ … ≥ σ_m` (`m = min(6, dof)`) of a Jacobian say.
+/// What the singular values `σ_1 ≥ … ≥ σ_m` of a Jacobian say, over the rows
+/// that matter for the arm: the three linear rows for arms of up to 3 joints
+/// (they place the tool point and cannot also set its orientation), all six
+/// rows otherwise; `m = min(rows, dof)`.
 #[cfg(feature = "nalgebra")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct VelocityMeasures {
-    /// Yoshikawa's manipulability: `√det(J Jᵀ)` over all six rows for
-    /// `dof ≥ 6`; for fewer joints (where `det(J Jᵀ)` is 0) `√det(Jᵀ J)`,
-    /// again over all six rows. Both are the product `σ_1 ⋯ σ_m`.
+    /// Yoshikawa's manipulability `√det(J Jᵀ)` over all six rows for
+    /// `dof ≥ 6`; `√det(Jᵀ J)` over all six rows for 4 or 5 joints (where
+    /// `det(J Jᵀ)` is 0); over the linear rows `J_v` for up to 3 joints,
+    /// `√det(J_v J_vᵀ)` for 3 and `√det(J_vᵀ J_v)` for 1 or 2. Each is the
+    /// product `σ_1 ⋯ σ_m`.
     pub manipulability: f64,
     /// `σ_1 / σ_m`; infinite when `σ_m` is exactly 0.
     pub condition_number: f64,
@@ -178,23 +183,32 @@ pub struct VelocityMeasures {
     pub singular: bool,
     /// The singular values, largest first.
     pub singular_values: Vec<f64>,
+    /// How many rows the measures use: 3 (linear rows, up to 3 joints) or 6.
+    pub rows: usize,
 }
 
 #[cfg(feature = "nalgebra")]
 impl Jacobian {
+    /// Rows the measures use for this many joints (see [`VelocityMeasures`]).
+    pub fn measure_rows(dof: usize) -> usize {
+        if dof <= 3 { 3 } else { 6 }
+    }
+
     /// Manipulability, condition number and singularity from the singular
-    /// values (nalgebra's SVD). A Jacobian whose SVD does not converge (not
+    /// values (nalgebra's SVD) of the rows that matter (see
+    /// [`VelocityMeasures`]). A Jacobian whose SVD does not converge (not
     /// seen for finite input) is reported singular with NaN measures.
     pub fn measures(&self) -> VelocityMeasures {
         let n = self.columns.len();
-        let m = nalgebra::DMatrix::from_fn(6, n, |r, c| self.columns[c][r]);
+        let rows = Self::measure_rows(n);
+        let m = nalgebra::DMatrix::from_fn(rows, n, |r, c| self.columns[c][r]);
         let sv: Vec<f64> = match nalgebra::SVD::try_new(m, false, false, f64::EPSILON, 10_000) {
             Some(svd) => {
                 let mut s: Vec<f64> = svd.singular_values.iter().copied().collect();
                 s.sort_by(|a, b| b.total_cmp(a));
                 s
             }
-            None => vec![f64::NAN; n.min(6)],
+            None => vec![f64::NAN; n.min(rows)],
         };
         let largest = sv.first().copied().unwrap_or(0.0);
         let smallest = sv.last().copied().unwrap_or(0.0);
@@ -208,6 +222,7 @@ impl Jacobian {
             condition_number,
             singular: !(smallest >= SINGULAR_THRESHOLD),
             singular_values: sv,
+            rows,
         }
     }
 }

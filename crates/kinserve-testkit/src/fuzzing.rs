@@ -177,8 +177,11 @@ pub fn check_fk_request(bytes: &[u8]) {
                 angle_unit: req.angle_unit,
                 check_limits: req.check_limits,
             };
-            for robot in robots() {
-                evaluate_one(service, robot, &req.joints, &opts, req.frames);
+            // An IK message is the IK check's business (check_ik_request).
+            if let Some(joints) = &req.joints {
+                for robot in robots() {
+                    evaluate_one(service, robot, joints, &opts, req.frames);
+                }
             }
         }
         Err(e) => assert_client_error(&Error::from(e), "WsRequest"),

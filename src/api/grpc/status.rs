@@ -22,6 +22,7 @@ pub fn code_of(e: &Error) -> Code {
         Error::Overloaded => Code::ResourceExhausted,
         Error::Unavailable { .. } => Code::Unavailable,
         Error::Storage { .. } => Code::Unavailable,
+        Error::IkNotConverged { .. } => Code::FailedPrecondition,
         Error::Internal { .. } => Code::Internal,
     }
 }

@@ -9,7 +9,7 @@ use utoipa::ToSchema;
 
 use crate::api::pose::Pose;
 use crate::kinematics::Transform;
-use crate::model::{AngleUnit, ConventionSpec, FkOptions, LengthUnit};
+use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
 use crate::service::Configurations;
 
 fn default_true() -> bool {
@@ -79,6 +79,57 @@ pub struct FkBatchRequest {
 }
 
 impl FkBatchRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+    }
+}
+
+/// `POST /v1/robots/{name}/jacobian`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"joints": [0, -30, 45, 0, 60, 0], "angle_unit": "deg", "frame": "base"}))]
+pub struct JacobianRequest {
+    /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
+    pub joints: Vec<f64>,
+    /// Unit of revolute joint values (default `rad`). The Jacobian's columns are per rad whatever this is.
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+    /// Frame of the Jacobian's rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+}
+
+impl JacobianRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+    }
+}
+
+/// `POST /v1/robots/{name}/jacobian/batch`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"configurations": [[0, 0], [0.5, -0.3]], "frame": "tool"}))]
+pub struct JacobianBatchRequest {
+    /// Joint configurations, each like `joints` of a single request.
+    #[schema(value_type = Vec<Vec<f64>>)]
+    pub configurations: Configurations,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+    /// Frame of the Jacobians' rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+}
+
+impl JacobianBatchRequest {
     /// The evaluation options this request asks for.
     pub fn options(&self) -> FkOptions {
         FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
@@ -157,15 +208,27 @@ impl<'de> Deserialize<'de> for Configurations {
     }
 }
 
-/// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the reply.
+/// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the
+/// reply; with `"jacobian": true` the reply carries the Jacobian too; with
+/// `"ik": {...}` (an IK request body, and no `joints`) it is an IK request.
 #[derive(Clone, Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WsRequest {
     /// Any JSON value; echoed in the reply.
     #[serde(default)]
     pub id: serde_json::Value,
-    /// Joint values (see [`FkRequest::joints`]).
-    pub joints: Vec<f64>,
+    /// Joint values (see [`FkRequest::joints`]); required unless `ik` is given.
+    #[serde(default)]
+    pub joints: Option<Vec<f64>>,
+    /// Also return the Jacobian and its measures (default false).
+    #[serde(default)]
+    pub jacobian: bool,
+    /// Frame of the Jacobian's rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+    /// An IK request instead of FK (like the body of `POST /v1/robots/{name}/ik`).
+    #[serde(default)]
+    pub ik: Option<IkSpec>,
     /// Unit of revolute joint values (default `rad`).
     #[serde(default)]
     pub angle_unit: AngleUnit,
@@ -198,14 +261,50 @@ pub struct WsReply<'a> {
     /// The request's `id`.
     #[schema(value_type = Object)]
     pub id: &'a serde_json::Value,
-    /// The tool pose, on success.
+    /// The tool pose, on success (for IK: the pose at the joints found).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pose: Option<Pose>,
     /// Every frame, when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<Pose>>)]
     pub frames: Option<PosesSer<'a>>,
+    /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
+    #[serde(flatten)]
+    pub jacobian: Option<WsJacobian>,
+    /// For an IK request: the answer (as `POST …/ik` answers it, `pose` above).
+    #[serde(flatten)]
+    pub ik: Option<WsIk>,
     /// The problem, on failure.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<super::problem::Problem>,
+}
+
+/// The Jacobian part of a WebSocket reply (see [`crate::api::velocity::JacobianItem`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsJacobian {
+    /// Frame of the rows.
+    pub frame: ReferenceFrame,
+    /// 6 rows × one column per joint.
+    pub jacobian: Vec<Vec<f64>>,
+    /// `√det(J Jᵀ)` (see the REST endpoint).
+    pub manipulability: f64,
+    /// Largest over smallest singular value; `null` when the smallest is 0.
+    pub condition_number: Option<f64>,
+    /// Smallest singular value below 1e-6.
+    pub singular: bool,
+}
+
+/// The IK part of a WebSocket reply (see [`crate::api::velocity::IkItem`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsIk {
+    /// Joint values in the request's angle unit.
+    pub joints: Vec<f64>,
+    /// Always true here (not converged is an `error` with the best attempt).
+    pub converged: bool,
+    /// Distance from the target position, robot length unit.
+    pub position_error: f64,
+    /// Angle from the target orientation, rad (`null` without one).
+    pub orientation_error: Option<f64>,
+    /// Solver iterations.
+    pub iterations: u32,
 }

@@ -5,6 +5,7 @@ mod extract;
 mod handlers;
 mod playground;
 pub mod problem;
+mod velocity;
 mod ws;
 
 use std::sync::Arc;
@@ -28,7 +29,10 @@ use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
-pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
+pub use dto::{
+    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
+    WsRequest,
+};
 pub use problem::{ApiError, Problem, ProblemField};
 
 use crate::error::Error;
@@ -97,13 +101,14 @@ impl Modify for SecurityAddon {
 /// The OpenAPI 3.1 document of the REST API.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "kinserve", description = "Forward kinematics of serial robots (Denavit–Hartenberg tables)."),
+    info(title = "kinserve", description = "Forward, velocity and inverse kinematics of serial robots (Denavit–Hartenberg tables)."),
     paths(
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, ws::stream, metrics_text
+        handlers::fk, handlers::fk_batch, velocity::jacobian, velocity::jacobian_batch,
+        velocity::ik, velocity::ik_batch, ws::stream, metrics_text
     ),
-    components(schemas(WsRequest, dto::WsReply)),
+    components(schemas(WsRequest, dto::WsReply, dto::WsJacobian, dto::WsIk)),
     modifiers(&SecurityAddon)
 )]
 pub struct ApiDoc;
@@ -184,6 +189,10 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/fk",
         "/v1/robots/{name}/fk/batch",
         "/v1/robots/{name}/fk/stream",
+        "/v1/robots/{name}/jacobian",
+        "/v1/robots/{name}/jacobian/batch",
+        "/v1/robots/{name}/ik",
+        "/v1/robots/{name}/ik/batch",
         "/v1/robots/{name}",
         "/v1/robots",
         "/healthz",
@@ -315,7 +324,20 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/fk/batch",
             axum::routing::post(handlers::fk_batch),
         )
-        .route("/v1/robots/{name}/fk/stream", get(ws::stream));
+        .route("/v1/robots/{name}/fk/stream", get(ws::stream))
+        .route(
+            "/v1/robots/{name}/jacobian",
+            axum::routing::post(velocity::jacobian),
+        )
+        .route(
+            "/v1/robots/{name}/jacobian/batch",
+            axum::routing::post(velocity::jacobian_batch),
+        )
+        .route("/v1/robots/{name}/ik", axum::routing::post(velocity::ik))
+        .route(
+            "/v1/robots/{name}/ik/batch",
+            axum::routing::post(velocity::ik_batch),
+        );
     let api = admin
         .merge(fk)
         .merge(extra)

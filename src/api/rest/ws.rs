@@ -1,4 +1,5 @@
-//! `GET /v1/robots/{name}/fk/stream`: FK over a WebSocket, one reply per message, in order.
+//! `GET /v1/robots/{name}/fk/stream`: FK, Jacobians and IK over a WebSocket,
+//! one reply per message, in order.
 
 use axum::extract::State;
 use axum::extract::ws::rejection::WebSocketUpgradeRejection;
@@ -8,7 +9,7 @@ use axum::response::{IntoResponse, Response};
 use futures_util::{FutureExt, SinkExt};
 
 use super::AppState;
-use super::dto::{PosesSer, WsIdOnly, WsReply, WsRequest};
+use super::dto::{PosesSer, WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::Pose;
@@ -18,11 +19,16 @@ use crate::error::Error;
 const GOING_AWAY: u16 = 1001;
 
 /// Opens the FK stream for a robot. Each text message
-/// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?}` gets exactly one
-/// reply `{"id", "pose", "frames"?}` or `{"id", "error": problem}`, in order.
+/// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?, "jacobian"?, "frame"?}`
+/// gets exactly one reply `{"id", "pose", "frames"?}` (plus `jacobian`,
+/// `manipulability`, `condition_number`, `singular`, `frame` with
+/// `"jacobian": true`) or `{"id", "error": problem}`, in order. A message
+/// `{"id", "ik": {IK request}}` gets `{"id", "pose", "joints", "converged",
+/// "position_error", "orientation_error", "iterations"}` or an `error` (an
+/// unreached target is `ik-not-converged` with the best attempt).
 #[utoipa::path(get, path = "/v1/robots/{name}/fk/stream", tag = "fk",
     params(("name" = String, Path, description = "Robot name")),
-    responses((status = 101, description = "WebSocket upgrade; messages are WsRequest, replies WsReply"),
+    responses((status = 101, description = "WebSocket upgrade; messages are WsRequest (FK, with the Jacobian on request, or IK), replies WsReply"),
         (status = 400, description = "Bad path or not a WebSocket handshake", body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 426, description = "The connection cannot be upgraded", body = Problem, content_type = "application/problem+json"),
@@ -91,7 +97,7 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
         let mut next = Some(first);
         while let Some(msg) = next.take() {
             let reply = match msg {
-                Message::Text(t) => Some(answer(&state, &name, t.as_bytes())),
+                Message::Text(t) => Some(answer(&state, &name, t.as_bytes()).await),
                 Message::Binary(_) => Some(error_reply(
                     &serde_json::Value::Null,
                     &Error::UnsupportedMediaType {
@@ -127,13 +133,15 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
         id,
         pose: None,
         frames: None,
+        jacobian: None,
+        ik: None,
         error: Some(Problem::from_error(e)),
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }
 
 /// The reply to one text message.
-fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
+async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
     let req: WsRequest = match parse_object(bytes) {
         Ok(r) => r,
         Err(e) => {
@@ -147,16 +155,77 @@ fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         Ok(e) => e,
         Err(e) => return error_reply(&req.id, &e),
     };
+    if let Some(ik) = req.ik {
+        if req.joints.is_some() {
+            let e = Error::invalid_field("joints", "give joints (FK) or ik, not both");
+            return error_reply(&req.id, &e);
+        }
+        return match state.service.ik_blocking(entry, ik).await {
+            Ok(a) => {
+                let reply = WsReply {
+                    id: &req.id,
+                    pose: Some(Pose::from(&a.pose)),
+                    frames: None,
+                    jacobian: None,
+                    ik: Some(WsIk {
+                        joints: a.joints,
+                        converged: a.converged,
+                        position_error: a.position_error,
+                        orientation_error: a.orientation_error,
+                        iterations: a.iterations,
+                    }),
+                    error: None,
+                };
+                serde_json::to_string(&reply).unwrap_or_default()
+            }
+            Err(e) => error_reply(&req.id, &e),
+        };
+    }
+    let Some(joints) = req.joints.as_deref() else {
+        return error_reply(
+            &req.id,
+            &Error::invalid_field("joints", "is required unless ik is given"),
+        );
+    };
+    fk_reply(state, &entry.robot, &req, joints)
+}
+
+/// The reply to an FK message (with the Jacobian when asked for).
+fn fk_reply(
+    state: &AppState,
+    robot: &crate::model::Robot,
+    req: &WsRequest,
+    joints: &[f64],
+) -> String {
     let opts = req.options();
+    let jacobian = if req.jacobian {
+        match state.service.jacobian(robot, joints, &opts, req.frame) {
+            Ok(a) => {
+                let item = crate::api::velocity::JacobianItem::from(&a);
+                Some(WsJacobian {
+                    frame: item.frame,
+                    jacobian: item.jacobian,
+                    manipulability: item.manipulability,
+                    condition_number: item.condition_number,
+                    singular: item.singular,
+                })
+            }
+            Err(e) => return error_reply(&req.id, &e),
+        }
+    } else {
+        None
+    };
     match state
         .service
-        .fk_with_frames(&entry.robot, &req.joints, &opts, req.frames)
+        .fk_with_frames(robot, joints, &opts, req.frames)
     {
         Ok((t, frames)) => {
             let reply = WsReply {
                 id: &req.id,
                 pose: Some(Pose::from(&t)),
                 frames: frames.as_deref().map(PosesSer),
+                jacobian,
+                ik: None,
                 error: None,
             };
             serde_json::to_string(&reply).unwrap_or_default()
