@@ -5,5 +5,6 @@ mod crash;
 mod grpc;
 mod helpers;
 mod hostile;
+mod ik;
 mod rest;
 mod ws;

@@ -190,7 +190,8 @@ async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
     fk_reply(state, &entry.robot, &req, joints)
 }
 
-/// The reply to an FK message (with the Jacobian when asked for).
+/// The reply to an FK message (with the Jacobian when asked for; its pose is
+/// then the Jacobian's, as `POST …/jacobian` answers it).
 fn fk_reply(
     state: &AppState,
     robot: &crate::model::Robot,
@@ -198,38 +199,38 @@ fn fk_reply(
     joints: &[f64],
 ) -> String {
     let opts = req.options();
-    let jacobian = if req.jacobian {
+    let (pose, frames) = match state
+        .service
+        .fk_with_frames(robot, joints, &opts, req.frames)
+    {
+        Ok(r) => r,
+        Err(e) => return error_reply(&req.id, &e),
+    };
+    let (pose, jacobian) = if req.jacobian {
         match state.service.jacobian(robot, joints, &opts, req.frame) {
             Ok(a) => {
                 let item = crate::api::velocity::JacobianItem::from(&a);
-                Some(WsJacobian {
+                let jacobian = WsJacobian {
                     frame: item.frame,
                     jacobian: item.jacobian,
                     manipulability: item.manipulability,
                     condition_number: item.condition_number,
                     singular: item.singular,
-                })
+                };
+                (item.pose, Some(jacobian))
             }
             Err(e) => return error_reply(&req.id, &e),
         }
     } else {
-        None
+        (Pose::from(&pose), None)
     };
-    match state
-        .service
-        .fk_with_frames(robot, joints, &opts, req.frames)
-    {
-        Ok((t, frames)) => {
-            let reply = WsReply {
-                id: &req.id,
-                pose: Some(Pose::from(&t)),
-                frames: frames.as_deref().map(PosesSer),
-                jacobian,
-                ik: None,
-                error: None,
-            };
-            serde_json::to_string(&reply).unwrap_or_default()
-        }
-        Err(e) => error_reply(&req.id, &e),
-    }
+    let reply = WsReply {
+        id: &req.id,
+        pose: Some(pose),
+        frames: frames.as_deref().map(PosesSer),
+        jacobian,
+        ik: None,
+        error: None,
+    };
+    serde_json::to_string(&reply).unwrap_or_default()
 }

@@ -169,6 +169,10 @@ const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/robots/{name}/fk", &["post"]),
     ("/v1/robots/{name}/fk/batch", &["post"]),
     ("/v1/robots/{name}/fk/stream", &["get"]),
+    ("/v1/robots/{name}/jacobian", &["post"]),
+    ("/v1/robots/{name}/jacobian/batch", &["post"]),
+    ("/v1/robots/{name}/ik", &["post"]),
+    ("/v1/robots/{name}/ik/batch", &["post"]),
 ];
 
 fn collect_refs(v: &Value, out: &mut Vec<String>) {
@@ -232,6 +236,15 @@ async fn openapi_covers_every_route_and_schema() {
         "ProblemField",
         "WsRequest",
         "WsReply",
+        "JacobianRequest",
+        "JacobianBatchRequest",
+        "JacobianOutput",
+        "JacobianBatchOutput",
+        "IkSpec",
+        "IkBatchSpec",
+        "IkTargetSpec",
+        "IkOutput",
+        "IkBatchOutput",
     ] {
         assert!(schemas.contains_key(s), "schema {s} missing");
     }
