@@ -11,11 +11,10 @@ use crate::model::{AngleUnit, IkAnswer, JacobianAnswer, LengthUnit, ReferenceFra
 /// The Jacobian of one configuration and what its singular values say.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "frame": "base",
-    "jacobian": [[0.0, 0.1], [0.5, 0.3], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
-    "manipulability": 0.12, "condition_number": 8.1, "singular": false,
-    "pose": {"matrix": [[1, 0, 0, 0.5], [0, 1, 0, 0.3], [0, 0, 1, 0], [0, 0, 0, 1]],
-             "position": [0.5, 0.3, 0.0], "quaternion": {"w": 1, "x": 0, "y": 0, "z": 0}, "rpy": [0, 0, 0]}
+    "frame": "tool", "jacobian": [[0.0, 0.0], [0.7, 0.29999999999999993], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
+    "manipulability": 0.0, "condition_number": null, "singular": true,
+    "pose": {"matrix": [[1.0, 0.0, 0.0, 0.7], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+        "position": [0.7, 0.0, 0.0], "quaternion": {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0}, "rpy": [0.0, 0.0, 0.0]}
 }))]
 pub struct JacobianItem {
     /// Frame of the rows: `base` (world frame, base transform included) or `tool`.
@@ -81,10 +80,12 @@ pub struct JacobianBatchOutput {
 /// One IK answer: the joints found (or the best attempt) and their errors.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "joints": [0.3, -0.5, 0.2, 0.4, 0.6, -0.2], "converged": true,
-    "position_error": 2.1e-16, "orientation_error": 3.3e-16, "iterations": 14,
-    "pose": {"matrix": [[1, 0, 0, 0.5], [0, 1, 0, 0.3], [0, 0, 1, 0], [0, 0, 0, 1]],
-             "position": [0.5, 0.3, 0.0], "quaternion": {"w": 1, "x": 0, "y": 0, "z": 0}, "rpy": [0, 0, 0]}
+    "joints": [0.04323781905251354, 1.186399552468544], "converged": true,
+    "position_error": 3.261475666182992e-11, "orientation_error": null, "iterations": 7,
+    "pose": {"matrix": [[0.3345794784216446, -0.9423675358473999, 0.0, 0.4999999999746447],
+            [0.9423675358473999, 0.3345794784216446, 0.0, 0.2999999999794858], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+        "position": [0.4999999999746447, 0.2999999999794858, 0.0],
+        "quaternion": {"w": 0.8168780442702707, "x": 0.0, "y": 0.0, "z": 0.5768104201461497}, "rpy": [0.0, 0.0, 1.2296373715210576]}
 }))]
 pub struct IkItem {
     /// Joint values: revolute in the request's `angle_unit`, prismatic in the

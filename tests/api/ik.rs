@@ -471,3 +471,31 @@ async fn the_stream_answers_fk_jacobian_and_ik_in_order_like_rest() {
         assert_eq!(fields(&r["error"]), ["joints"], "{r}");
     }
 }
+
+#[tokio::test]
+async fn the_new_endpoints_document_every_response_with_a_description_and_an_example() {
+    let app = spawn_app().await;
+    let doc: Value = app.get("/openapi.json").await.json().await.unwrap();
+    for path in [
+        "/v1/robots/{name}/jacobian",
+        "/v1/robots/{name}/jacobian/batch",
+        "/v1/robots/{name}/ik",
+        "/v1/robots/{name}/ik/batch",
+    ] {
+        let responses = doc["paths"][path]["post"]["responses"]
+            .as_object()
+            .expect(path);
+        for code in ["200", "400", "404", "413", "415", "422", "503"] {
+            let r = &responses[code];
+            assert!(
+                !r["description"].as_str().unwrap_or("").is_empty(),
+                "{path} {code}"
+            );
+            let content = r["content"].as_object().expect("content");
+            assert!(
+                content.values().all(|c| c.get("example").is_some()),
+                "{path} {code}: no example"
+            );
+        }
+    }
+}

@@ -174,12 +174,12 @@ impl Rng {
 /// every angle: through the unit quaternion (Shepperd's method) and `atan2`.
 pub fn rotation_error(target: &Transform, pose: &Transform) -> [f64; 3] {
     let (a, b) = (&target.rotation, &pose.rotation);
-    let mut m = Transform::IDENTITY;
-    for i in 0..3 {
-        for j in 0..3 {
-            m.rotation[i][j] = a[i][0] * b[j][0] + a[i][1] * b[j][1] + a[i][2] * b[j][2];
-        }
-    }
+    let m = Transform {
+        rotation: std::array::from_fn(|i| {
+            std::array::from_fn(|j| a[i][0] * b[j][0] + a[i][1] * b[j][1] + a[i][2] * b[j][2])
+        }),
+        translation: [0.0; 3],
+    };
     let [w, x, y, z] = m.quaternion();
     let s = (x * x + y * y + z * z).sqrt();
     if s == 0.0 {

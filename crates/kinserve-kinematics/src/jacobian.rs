@@ -220,7 +220,8 @@ impl Jacobian {
         VelocityMeasures {
             manipulability: sv.iter().product(),
             condition_number,
-            singular: !(smallest >= SINGULAR_THRESHOLD),
+            // NaN (an SVD that did not converge) counts as singular.
+            singular: smallest.is_nan() || smallest < SINGULAR_THRESHOLD,
             singular_values: sv,
             rows,
         }

@@ -36,7 +36,8 @@ pub const IK_MAX_RESTARTS: u32 = 1_000;
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 #[cfg_attr(feature = "openapi", schema(example = json!({
-    "position": [0.4, 0.1, 0.3], "quaternion": {"w": 0.0, "x": 1.0, "y": 0.0, "z": 0.0}
+    "position": [0.3161255029988693, -0.044619601375991136, 0.8782707984072009],
+    "quaternion": {"w": 0.8401820867347285, "x": 0.20769568623856688, "y": -0.4940114485076959, "z": 0.08312190921349348}
 })))]
 pub struct IkTargetSpec {
     /// Homogeneous 4×4 matrix, row-major; must be rigid (within 1e-6, last row
@@ -56,7 +57,8 @@ pub struct IkTargetSpec {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 #[cfg_attr(feature = "openapi", schema(example = json!({
-    "target": {"position": [0.4, 0.1, 0.3], "quaternion": {"w": 0.0, "x": 1.0, "y": 0.0, "z": 0.0}},
+    "target": {"position": [0.3161255029988693, -0.044619601375991136, 0.8782707984072009],
+        "quaternion": {"w": 0.8401820867347285, "x": 0.20769568623856688, "y": -0.4940114485076959, "z": 0.08312190921349348}},
     "angle_unit": "deg"
 })))]
 pub struct IkSpec {
@@ -91,10 +93,8 @@ pub struct IkSpec {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 #[cfg_attr(feature = "openapi", schema(example = json!({
-    "targets": [
-        {"position": [0.4, 0.1, 0.3], "quaternion": {"w": 0.0, "x": 1.0, "y": 0.0, "z": 0.0}},
-        {"position": [0.4, 0.12, 0.3], "quaternion": {"w": 0.0, "x": 1.0, "y": 0.0, "z": 0.0}}
-    ]
+    "targets": [{"position": [0.5, 0.3, 0.0]}, {"position": [0.5, 0.32, 0.0]}],
+    "position_only": true
 })))]
 pub struct IkBatchSpec {
     /// The poses to reach, in order.
