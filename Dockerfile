@@ -65,7 +65,8 @@ RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/regist
 #    stubs again; real files (src/bin/*.rs) are left alone.
 COPY build.rs ./
 COPY proto ./proto
-# robots/ too: the library embeds a few built-in models (src/fuzzing.rs).
+# robots/ too: build.rs embeds the built-in robots in the binary.
+COPY robots ./robots
 COPY crates ./crates
 COPY src ./src
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
@@ -92,15 +93,13 @@ RUN groupadd --gid "${KINSERVE_GID}" kinserve \
  && chown "${KINSERVE_UID}:${KINSERVE_GID}" /var/lib/kinserve \
  && chmod 0750 /var/lib/kinserve
 
-# Binary and built-in robots are owned by root: the service can read, not change them.
+# The binary (built-in robots included) is owned by root: the service can run it, not change it.
 COPY --from=builder /out/kinserve /usr/local/bin/kinserve
-COPY robots/ /usr/share/kinserve/robots/
 
 # Configuration is env only (every `kinserve serve` flag has a KINSERVE_* twin).
 # KINSERVE_API_TOKEN has no default: set it at run time to protect mutating calls.
 ENV KINSERVE_HTTP_ADDR=0.0.0.0:8080 \
     KINSERVE_GRPC_ADDR=0.0.0.0:50051 \
-    KINSERVE_ROBOTS_DIR=/usr/share/kinserve/robots \
     KINSERVE_DATA_DIR=/var/lib/kinserve \
     KINSERVE_LOG_FORMAT=json \
     KINSERVE_HEALTHCHECK_ADDR=127.0.0.1:8080

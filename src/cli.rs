@@ -1,15 +1,20 @@
-//! The `kinserve` command line: `serve` (default), `validate`, `fk`, `healthcheck`.
+//! The `kinserve` command line: `serve` (default), `validate`, `fk`,
+//! `closed-form`, `urdf`, `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
-use crate::config::{Cli, Command, FkArgs, ServeConfig};
+use crate::config::{
+    Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, ModelArgs, ServeConfig,
+};
 use crate::error::Error;
-use crate::model::{AngleUnit, FkOptions, load_robot_file};
+use crate::model::{
+    AngleUnit, ClosedForm, FkOptions, ModelLimits, Robot, load_robot_file, to_urdf,
+};
+use crate::registry::builtin;
 
 /// Runs the command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
@@ -18,6 +23,8 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Serve(c)) => serve(*c),
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
+        Some(Command::ClosedForm(args)) => closed_form(&args),
+        Some(Command::Urdf(args)) => urdf(&args),
         Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
     }
 }
@@ -59,20 +66,29 @@ fn print_error(label: &str, e: &Error) {
     }
 }
 
+/// A robot file, or its errors printed (a missing file said plainly, not as malformed input).
+fn load_file(path: &std::path::Path) -> Option<crate::model::Robot> {
+    let label = path.display().to_string();
+    if !path.exists() {
+        eprintln!("{label}: no such file");
+        return None;
+    }
+    load_robot_file(path)
+        .map_err(|e| print_error(&label, &Error::from(e)))
+        .ok()
+}
+
 fn validate(files: &[std::path::PathBuf]) -> ExitCode {
     let mut failed = 0;
     for f in files {
-        match load_robot_file(f) {
-            Ok(robot) => println!(
+        match load_file(f) {
+            Some(robot) => println!(
                 "{}: ok ({}, {} joints)",
                 f.display(),
                 robot.name(),
                 robot.dof()
             ),
-            Err(e) => {
-                failed += 1;
-                print_error(&f.display().to_string(), &e.into());
-            }
+            None => failed += 1,
         }
     }
     if failed > 0 {
@@ -84,35 +100,13 @@ fn validate(files: &[std::path::PathBuf]) -> ExitCode {
 }
 
 fn fk(args: &FkArgs) -> ExitCode {
-    let path = match (&args.robot, &args.model) {
-        (Some(name), _) => {
-            if let Err(m) = crate::model::validate_name(name) {
-                eprintln!("--robot: {m}");
-                return ExitCode::FAILURE;
-            }
-            args.robots_dir.join(format!("{name}.json"))
-        }
-        (None, Some(p)) => p.clone(),
-        (None, None) => {
-            eprintln!("give --robot NAME or --model FILE");
-            return ExitCode::FAILURE;
-        }
-    };
-    let label = path.display().to_string();
-    if args.robot.is_some() && !Path::new(&path).exists() {
-        eprintln!(
-            "no robot '{}' in {}",
-            args.robot.as_deref().unwrap_or(""),
-            args.robots_dir.display()
-        );
-        return ExitCode::FAILURE;
-    }
-    let robot = match load_robot_file(&path) {
+    let robot = match load_robot(
+        args.robot.as_deref(),
+        args.model.as_deref(),
+        args.robots_dir.as_deref(),
+    ) {
         Ok(r) => r,
-        Err(e) => {
-            print_error(&label, &e.into());
-            return ExitCode::FAILURE;
-        }
+        Err(code) => return code,
     };
     let unit = if args.deg {
         AngleUnit::Deg
@@ -147,6 +141,99 @@ fn fk(args: &FkArgs) -> ExitCode {
             print_error("--joints", &e.into());
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The robot `args` names (a built-in by name, or a file); errors printed.
+fn load_model(args: &ModelArgs) -> Result<Robot, ExitCode> {
+    load_robot(
+        args.robot.as_deref(),
+        args.model.as_deref(),
+        args.robots_dir.as_deref(),
+    )
+}
+
+/// The one loader of the commands that work on a robot: a built-in by name
+/// (`--robots-dir` adds or overrides) or a model file; errors printed.
+fn load_robot(
+    robot: Option<&str>,
+    model: Option<&std::path::Path>,
+    robots_dir: Option<&std::path::Path>,
+) -> Result<Robot, ExitCode> {
+    let (label, loaded) = match (robot, model) {
+        (Some(name), _) => {
+            if let Err(m) = crate::model::validate_name(name) {
+                eprintln!("--robot: {m}");
+                return Err(ExitCode::FAILURE);
+            }
+            match builtin::find(name, robots_dir, &ModelLimits::default()) {
+                Some(found) => found,
+                None => {
+                    let names: Vec<_> = builtin::embedded_names().collect();
+                    eprintln!(
+                        "no built-in robot '{name}' (built-in: {}); give --model FILE for your own",
+                        names.join(", ")
+                    );
+                    return Err(ExitCode::FAILURE);
+                }
+            }
+        }
+        (None, Some(p)) => match load_file(p) {
+            Some(robot) => (p.display().to_string(), Ok(robot)),
+            None => return Err(ExitCode::FAILURE),
+        },
+        (None, None) => {
+            eprintln!("give --robot NAME or --model FILE");
+            return Err(ExitCode::FAILURE);
+        }
+    };
+    loaded.map_err(|e| {
+        print_error(&label, &e);
+        ExitCode::FAILURE
+    })
+}
+
+fn closed_form(args: &ClosedFormArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let cf = match ClosedForm::of(&robot) {
+        Ok(cf) => cf,
+        Err(e) => {
+            print_error(robot.name(), &e.into());
+            return ExitCode::FAILURE;
+        }
+    };
+    let out = match args.format {
+        ClosedFormFormat::Json => match serde_json::to_string_pretty(&cf) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("cannot print the result: {e}");
+                return ExitCode::FAILURE;
+            }
+        },
+        ClosedFormFormat::Text => cf
+            .transform
+            .text
+            .iter()
+            .map(|r| r.join(" | "))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        ClosedFormFormat::Latex => cf.transform.latex,
+        ClosedFormFormat::Mathml => cf.transform.mathml,
+    };
+    println!("{out}");
+    ExitCode::SUCCESS
+}
+
+fn urdf(args: &ModelArgs) -> ExitCode {
+    match load_model(args) {
+        Ok(robot) => {
+            print!("{}", to_urdf(&robot));
+            ExitCode::SUCCESS
+        }
+        Err(code) => code,
     }
 }
 

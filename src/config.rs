@@ -33,6 +33,11 @@ pub enum Command {
     },
     /// Compute FK once and print it as JSON (the REST API's `fk` response).
     Fk(FkArgs),
+    /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
+    /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
+    ClosedForm(ClosedFormArgs),
+    /// Print a robot as URDF (metres, radians; the REST API's `urdf` response).
+    Urdf(ModelArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
     /// Used as the container HEALTHCHECK (the image has no curl).
     Healthcheck {
@@ -53,7 +58,7 @@ pub enum Command {
 #[derive(Debug, Args)]
 #[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
 pub struct FkArgs {
-    /// A robot from the robots directory, by name.
+    /// A built-in robot by name (or one from --robots-dir).
     #[arg(long)]
     pub robot: Option<String>,
     /// A robot model file (JSON).
@@ -76,19 +81,50 @@ pub struct FkArgs {
     /// Do not check joint limits.
     #[arg(long)]
     pub no_limits: bool,
-    /// Where built-in robots live.
-    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
-    pub robots_dir: PathBuf,
+    /// A directory of robot files (JSON) that add to or override the built-in robots.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
 }
 
-/// Log output format.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
-pub enum LogFormat {
-    /// Human-readable lines.
-    #[default]
-    Human,
-    /// One JSON object per line.
+pub use crate::telemetry::LogFormat;
+
+/// Which robot a command works on: a built-in by name or a model file.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
+pub struct ModelArgs {
+    /// A built-in robot by name (or one from --robots-dir).
+    #[arg(long)]
+    pub robot: Option<String>,
+    /// A robot model file (JSON).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// A directory of robot files (JSON) that add to or override the built-in robots.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
+}
+
+/// Arguments of `kinserve closed-form`.
+#[derive(Debug, Args)]
+pub struct ClosedFormArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// What to print: the whole answer as JSON, or ⁰Tₙ as text rows, LaTeX or MathML.
+    #[arg(long, value_enum, default_value_t = ClosedFormFormat::Json)]
+    pub format: ClosedFormFormat,
+}
+
+/// Output of `kinserve closed-form`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ClosedFormFormat {
+    /// The REST API's JSON answer.
     Json,
+    /// ⁰Tₙ, one row per line, entries separated by ` | `.
+    Text,
+    /// ⁰Tₙ as a LaTeX bmatrix.
+    Latex,
+    /// ⁰Tₙ as presentation MathML.
+    Mathml,
 }
 
 /// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.
@@ -125,9 +161,10 @@ pub struct ServeConfig {
     /// gRPC listener (port 0 picks a free port).
     #[arg(long, env = "KINSERVE_GRPC_ADDR", default_value = "0.0.0.0:50051")]
     pub grpc_addr: SocketAddr,
-    /// Directory of built-in (read-only) robot files.
-    #[arg(long, env = "KINSERVE_ROBOTS_DIR", default_value = "robots")]
-    pub robots_dir: PathBuf,
+    /// A directory of read-only robot files (JSON) that add to or override the
+    /// built-in robots, which are embedded in the binary.
+    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
+    pub robots_dir: Option<PathBuf>,
     /// Where registered robots are persisted.
     #[arg(long, env = "KINSERVE_DATA_DIR", default_value = "./data")]
     pub data_dir: PathBuf,
@@ -141,12 +178,19 @@ pub struct ServeConfig {
         value_delimiter = ','
     )]
     pub cors_origins: Vec<String>,
+    /// One access-log line per HTTP request and gRPC call at info (method,
+    /// route, status, duration, request id); `false` turns it off.
+    #[arg(long, env = "KINSERVE_ACCESS_LOG", default_value_t = true, action = clap::ArgAction::Set)]
+    pub access_log: bool,
     /// Log format.
     #[arg(long, env = "KINSERVE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Human)]
     pub log_format: LogFormat,
     /// Most configurations in one batch request.
     #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
     pub max_batch: usize,
+    /// Most registered robots (built-ins not counted); registering one more is 507.
+    #[arg(long, env = "KINSERVE_MAX_ROBOTS", default_value_t = 1000)]
+    pub max_robots: usize,
     /// Most movable joints in a model.
     #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS)]
     pub max_joints: usize,
@@ -190,7 +234,9 @@ impl std::fmt::Debug for ServeConfig {
             api_token,
             cors_origins,
             log_format,
+            access_log,
             max_batch,
+            max_robots,
             max_joints,
             max_links,
             max_body_bytes,
@@ -210,7 +256,9 @@ impl std::fmt::Debug for ServeConfig {
             .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
             .field("cors_origins", cors_origins)
             .field("log_format", log_format)
+            .field("access_log", access_log)
             .field("max_batch", max_batch)
+            .field("max_robots", max_robots)
             .field("max_joints", max_joints)
             .field("max_links", max_links)
             .field("max_body_bytes", max_body_bytes)
@@ -240,17 +288,19 @@ impl Default for ServeConfig {
 
 impl ServeConfig {
     /// A configuration for tests: both listeners on 127.0.0.1 port 0, data in `data_dir`,
-    /// built-ins from the crate's `robots/`, no env influence.
+    /// the embedded built-in robots only, no env influence.
     pub fn for_tests(data_dir: PathBuf) -> ServeConfig {
         ServeConfig {
             http_addr: "127.0.0.1:0".parse().expect("valid literal"),
             grpc_addr: "127.0.0.1:0".parse().expect("valid literal"),
-            robots_dir: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/robots")),
+            robots_dir: None,
             data_dir,
             api_token: None,
             cors_origins: Vec::new(),
             log_format: LogFormat::Human,
+            access_log: true,
             max_batch: 10_000,
+            max_robots: 1000,
             max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
             max_links: ModelLimits::DEFAULT_MAX_LINKS,
             max_body_bytes: 1 << 20,
@@ -272,6 +322,7 @@ impl ServeConfig {
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
             cors_origins: self.cors_origins.clone(),
+            access_log: self.access_log,
         }
     }
 
@@ -281,6 +332,7 @@ impl ServeConfig {
             max_message_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
+            access_log: self.access_log,
         }
     }
 

@@ -27,10 +27,12 @@ pub enum Error {
         violations: Vec<FieldViolation>,
     },
     /// No robot of that name (HTTP 404, gRPC NOT_FOUND).
-    #[error("robot '{name}' not found")]
+    #[error("robot '{name}' not found{}", did_you_mean(suggestions))]
     NotFound {
         /// The robot name asked for.
         name: String,
+        /// The nearest names that exist (case-insensitive edit distance), best first.
+        suggestions: Vec<String>,
     },
     /// No such route or method (HTTP 404, gRPC UNIMPLEMENTED).
     #[error("no route for '{path}'")]
@@ -49,6 +51,20 @@ pub enum Error {
     ReadOnly {
         /// The built-in robot's name.
         name: String,
+    },
+    /// Refused by policy whatever the token, e.g. a registry write from a web
+    /// page of another origin (HTTP 403, gRPC PERMISSION_DENIED).
+    #[error("forbidden: {detail}")]
+    Forbidden {
+        /// Why, and how to allow it.
+        detail: String,
+    },
+    /// The registry holds as many registered robots as it may (HTTP 507,
+    /// gRPC RESOURCE_EXHAUSTED).
+    #[error("registry full: {detail}")]
+    Full {
+        /// The limit and how to make room.
+        detail: String,
     },
     /// Missing or wrong bearer token (HTTP 401, gRPC UNAUTHENTICATED).
     #[error("missing or invalid bearer token")]
@@ -169,6 +185,18 @@ impl From<ModelError> for Error {
         match e {
             ModelError::Malformed { detail, violations } => Error::Malformed { detail, violations },
             ModelError::Invalid { detail, violations } => Error::Invalid { detail, violations },
+        }
+    }
+}
+
+/// "; did you mean 'a' or 'b'?" for a non-empty list, else nothing.
+fn did_you_mean(suggestions: &[String]) -> String {
+    match suggestions {
+        [] => String::new(),
+        [one] => format!("; did you mean '{one}'?"),
+        [init @ .., last] => {
+            let init: Vec<String> = init.iter().map(|s| format!("'{s}'")).collect();
+            format!("; did you mean {} or '{last}'?", init.join(", "))
         }
     }
 }

@@ -1,8 +1,8 @@
 //! The protocol-neutral service: what REST and gRPC both call. Adapters
 //! validate and convert their wire types, call one method here, and convert back.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use subtle::ConstantTimeEq;
@@ -10,7 +10,7 @@ use subtle::ConstantTimeEq;
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
 use crate::model::{
-    FkOptions, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, LengthUnit, ModelLimits,
+    ClosedForm, FkOptions, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, LengthUnit, ModelLimits,
     ReferenceFrame, Robot, RobotSpec,
 };
 use crate::registry::{Entry, Origin, PutMode, Registry};
@@ -97,8 +97,6 @@ pub struct Service {
     limits: ServiceLimits,
     ready: AtomicBool,
     token: Option<String>,
-    /// Handle of `kinserve_poses_computed_total`, resolved on first use (after the recorder is installed).
-    poses: OnceLock<metrics::Counter>,
 }
 
 impl Service {
@@ -109,7 +107,6 @@ impl Service {
             limits,
             ready: AtomicBool::new(false),
             token: token.filter(|t| !t.is_empty()),
-            poses: OnceLock::new(),
         }
     }
 
@@ -145,7 +142,15 @@ impl Service {
         };
         match presented {
             Some(p) if bool::from(p.as_bytes().ct_eq(expected.as_bytes())) => Ok(()),
-            _ => Err(Error::Unauthenticated),
+            _ => {
+                let token = if presented.is_some() {
+                    "wrong"
+                } else {
+                    "missing"
+                };
+                tracing::info!(target: "kinserve::audit", token, result = "refused", "registry change refused: missing or invalid bearer token");
+                Err(Error::Unauthenticated)
+            }
         }
     }
 
@@ -174,16 +179,114 @@ impl Service {
             .collect()
     }
 
-    /// The robot called `name`.
+    /// One page of the robot list (AIP-158): at most `page_size` robots
+    /// ([`DEFAULT_PAGE_SIZE`] when 0, [`MAX_PAGE_SIZE`] at most), sorted by name,
+    /// starting after the robot that `page_token` (from the previous page's
+    /// answer) names. The token of the next page is `None` on the last page.
+    pub fn list_page(
+        &self,
+        page_size: u32,
+        page_token: &str,
+    ) -> Result<(Vec<RobotSummary>, Option<String>)> {
+        let after = match page_token {
+            "" => None,
+            t => Some(decode_page_token(t).ok_or_else(|| {
+                Error::malformed_field(
+                    "page_token",
+                    "not a page token this server issued: pass next_page_token from the previous page unchanged",
+                )
+            })?),
+        };
+        let size = match page_size {
+            0 => DEFAULT_PAGE_SIZE,
+            n => (n as usize).min(MAX_PAGE_SIZE),
+        };
+        let all = self.list();
+        let start = after.map_or(0, |a| {
+            all.partition_point(|r| r.name.as_str() <= a.as_str())
+        });
+        let page: Vec<RobotSummary> = all.into_iter().skip(start).take(size + 1).collect();
+        let (page, next) = if page.len() > size {
+            let mut page = page;
+            page.truncate(size);
+            let next = page.last().map(|r| encode_page_token(&r.name));
+            (page, next)
+        } else {
+            (page, None)
+        };
+        Ok((page, next))
+    }
+
+    /// The robot called `name`. An empty name is malformed input; an unknown
+    /// one is [`Error::NotFound`] with the nearest existing names.
     pub fn robot(&self, name: &str) -> Result<Arc<Entry>> {
+        self.robot_at(name, "name")
+    }
+
+    /// [`Service::robot`] for a request whose robot name is in field `field`
+    /// (`robot` in the gRPC FK messages), which an empty name is reported against.
+    pub fn robot_at(&self, name: &str, field: &str) -> Result<Arc<Entry>> {
+        if name.is_empty() {
+            return Err(Error::malformed_field(
+                field,
+                "must not be empty: give a robot name (GET /v1/robots or ListRobots lists them)",
+            ));
+        }
         self.registry.get(name).ok_or_else(|| Error::NotFound {
             name: truncate_name(name),
+            suggestions: self.nearest_names(name),
         })
     }
 
+    /// Up to three registered names close to `name`: equal ignoring case and
+    /// `-`/`_`, or within a small edit distance (case-insensitive), best first.
+    fn nearest_names(&self, name: &str) -> Vec<String> {
+        let wanted = normalise(name);
+        if wanted.chars().count() > 64 {
+            return Vec::new();
+        }
+        let budget = (wanted.chars().count() / 3).max(2);
+        let mut scored: Vec<(usize, String)> = self
+            .registry
+            .list()
+            .iter()
+            .map(|e| e.robot.name().to_string())
+            .filter_map(|n| {
+                let d = edit_distance(&wanted, &normalise(&n));
+                (d <= budget).then_some((d, n))
+            })
+            .collect();
+        scored.sort();
+        scored.into_iter().take(3).map(|(_, n)| n).collect()
+    }
+
+    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]);
+    /// invalid input when it is too long to print.
+    pub fn closed_form(&self, name: &str) -> Result<ClosedForm> {
+        let entry = self.robot(name)?;
+        Ok(ClosedForm::of(&entry.robot)?)
+    }
+
+    /// Robot `name` as a URDF document (metres, radians).
+    pub fn urdf(&self, name: &str) -> Result<String> {
+        let entry = self.robot(name)?;
+        Ok(crate::model::to_urdf(&entry.robot))
+    }
+
     /// Validates and registers a model, durably. `Ok(true)` if created,
-    /// `Ok(false)` if it replaced a registered robot.
+    /// `Ok(false)` if it replaced a registered robot. Writes one audit line.
     pub async fn register(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
+        let name = truncate_name(&spec.name);
+        let result = self.register_inner(spec, mode).await;
+        let action = match (mode, &result) {
+            (_, Ok(true)) | (PutMode::Create, _) => "register",
+            (PutMode::Upsert, _) => "replace",
+        };
+        self.audit(action, &name, &result);
+        result
+    }
+
+    async fn register_inner(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
         let robot = Robot::from_spec(spec, &self.limits.model)?;
         let this = Arc::clone(self);
         let created = tokio::task::spawn_blocking(move || this.registry.put(robot, mode))
@@ -195,22 +298,40 @@ impl Service {
         Ok(created)
     }
 
-    /// Deletes a registered robot, durably.
+    /// Deletes a registered robot, durably. Writes one audit line.
     pub async fn delete(self: &Arc<Self>, name: &str) -> Result<()> {
         let this = Arc::clone(self);
-        let name = name.to_string();
-        tokio::task::spawn_blocking(move || this.registry.delete(&name))
+        let owned = name.to_string();
+        let result = tokio::task::spawn_blocking(move || this.registry.delete(&owned))
             .await
             .map_err(|e| Error::Internal {
                 detail: e.to_string(),
-            })??;
-        self.record_robot_count();
-        Ok(())
+            })
+            .and_then(|r| r);
+        if result.is_ok() {
+            self.record_robot_count();
+        }
+        self.audit("delete", &truncate_name(name), &result);
+        result
     }
 
-    fn poses_counter(&self) -> &metrics::Counter {
-        self.poses
-            .get_or_init(|| metrics::counter!("kinserve_poses_computed_total"))
+    /// One audit line per registry change (target `kinserve::audit`): what,
+    /// which robot, the outcome, and who — whether a bearer token was
+    /// required and so presented (the token itself is never logged).
+    fn audit<T>(&self, action: &str, robot: &str, result: &Result<T>) {
+        let who = if self.auth_required() {
+            "bearer token"
+        } else {
+            "anyone (no API token configured)"
+        };
+        match result {
+            Ok(_) => {
+                tracing::info!(target: "kinserve::audit", action, robot, who, result = "ok", "registry change")
+            }
+            Err(e) => {
+                tracing::info!(target: "kinserve::audit", action, robot, who, result = "refused", error = %e, "registry change refused")
+            }
+        }
     }
 
     /// Publishes the robot counts as gauges.
@@ -222,9 +343,7 @@ impl Service {
 
     /// Checked FK of one configuration: the tool pose.
     pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
-        let t = robot.check_joints(q, opts)?.fk();
-        self.poses_counter().increment(1);
-        Ok(t)
+        Ok(robot.check_joints(q, opts)?.fk())
     }
 
     /// Checked FK of one configuration with every frame (see [`crate::model::JointVector::fk_frames`]).
@@ -234,9 +353,7 @@ impl Service {
         q: &[f64],
         opts: &FkOptions,
     ) -> Result<(Transform, Vec<Transform>)> {
-        let r = robot.check_joints(q, opts)?.fk_frames();
-        self.poses_counter().increment(1);
-        Ok(r)
+        Ok(robot.check_joints(q, opts)?.fk_frames())
     }
 
     /// Checked FK of one configuration: the tool pose, and every frame when
@@ -248,9 +365,7 @@ impl Service {
         opts: &FkOptions,
         frames: bool,
     ) -> Result<(Transform, Option<Vec<Transform>>)> {
-        let r = robot.check_joints(q, opts)?.fk_with_frames(frames);
-        self.poses_counter().increment(1);
-        Ok(r)
+        Ok(robot.check_joints(q, opts)?.fk_with_frames(frames))
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
@@ -279,7 +394,6 @@ impl Service {
         let out = robot
             .check_batch(&configs.values, &configs.lens, opts)?
             .fk();
-        self.poses_counter().increment(out.len() as u64);
         Ok(out)
     }
 }
@@ -296,9 +410,7 @@ impl Service {
         opts: &FkOptions,
         frame: ReferenceFrame,
     ) -> Result<JacobianAnswer> {
-        let a = robot.check_joints(q, opts)?.jacobian(frame);
-        self.poses_counter().increment(1);
-        Ok(a)
+        Ok(robot.check_joints(q, opts)?.jacobian(frame))
     }
 
     /// Checked Jacobians of many configurations, in request order; one bad
@@ -322,7 +434,6 @@ impl Service {
             out.push(robot.check_joints(q, opts)?.jacobian(frame));
             offset += len as usize;
         }
-        self.poses_counter().increment(out.len() as u64);
         Ok(out)
     }
 
@@ -398,6 +509,30 @@ impl Service {
     }
 }
 
+/// Robots in a list page when the client does not say (AIP-158 `page_size` 0).
+pub const DEFAULT_PAGE_SIZE: usize = 100;
+/// Most robots in one list page; larger `page_size` values are lowered to it.
+pub const MAX_PAGE_SIZE: usize = 1000;
+
+/// A page token: `n.` and the hex of the last name of the previous page
+/// (opaque to clients; only this server's tokens decode).
+fn encode_page_token(last: &str) -> String {
+    let hex: String = last.bytes().map(|b| format!("{b:02x}")).collect();
+    format!("n.{hex}")
+}
+
+fn decode_page_token(token: &str) -> Option<String> {
+    let hex = token.strip_prefix("n.")?;
+    if hex.len() % 2 != 0 || hex.len() > 256 {
+        return None;
+    }
+    let bytes: Option<Vec<u8>> = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(hex.get(i..i + 2)?, 16).ok())
+        .collect();
+    String::from_utf8(bytes?).ok()
+}
+
 /// Robot names echoed in errors are cut to 64 characters (a 10 KB name is not echoed back).
 fn truncate_name(name: &str) -> String {
     let mut s: String = name.chars().take(64).collect();
@@ -405,4 +540,28 @@ fn truncate_name(name: &str) -> String {
         s.push('…');
     }
     s
+}
+
+/// Lowercase, with `-`, `_` and spaces removed (`Puma-560` → `puma560`).
+fn normalise(name: &str) -> String {
+    name.chars()
+        .filter(|c| !matches!(c, '-' | '_' | ' '))
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
+/// Levenshtein distance between two short strings (characters).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let up = row[j + 1];
+            row[j + 1] = (up + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
+            diag = up;
+        }
+    }
+    row[b.len()]
 }

@@ -1,18 +1,34 @@
-//! Logging (tracing) and metrics (Prometheus) set-up.
+//! Logging (tracing) and metrics (Prometheus): set-up, and the one list of
+//! metric families with their help texts. Label sets are bounded: robots are
+//! labelled by name only for the built-ins and the first
+//! [`MAX_REGISTERED_ROBOT_LABELS`] registered names, later ones as `other`.
+//! Depends on no other module of the crate.
 
-use std::sync::OnceLock;
+use std::collections::HashSet;
+use std::sync::{Mutex, OnceLock};
 
 use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
 use tracing_subscriber::EnvFilter;
 
-use crate::config::LogFormat;
+/// Log output format.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines (colours only on a terminal).
+    #[default]
+    Human,
+    /// One JSON object per line.
+    Json,
+}
 
 /// Installs the global tracing subscriber (level from `RUST_LOG`, default `info`).
 /// Later calls do nothing.
 pub fn init_tracing(format: LogFormat) {
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info"));
+    // Colour codes only when a person reads the terminal, never into files or pipes.
+    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
+        .with_ansi(ansi)
         .with_writer(std::io::stderr);
     let _ = match format {
         LogFormat::Human => builder.try_init(),
@@ -37,12 +53,276 @@ pub fn metrics_handle() -> PrometheusHandle {
                     LATENCY_BUCKETS,
                 )
                 .unwrap_or_else(|_| PrometheusBuilder::new());
-            match builder.install_recorder() {
+            let handle = match builder.install_recorder() {
                 Ok(handle) => handle,
                 // Another recorder is installed already (e.g. by an embedding program):
                 // keep a private one so /metrics still answers.
                 Err(_) => PrometheusBuilder::new().build_recorder().handle(),
-            }
+            };
+            describe_families();
+            metrics::gauge!("kinserve_build_info", "version" => env!("CARGO_PKG_VERSION")).set(1.0);
+            handle
         })
         .clone()
+}
+
+/// Every metric family with its help text (the `# HELP` lines of `/metrics`).
+pub const FAMILIES: &[(&str, &str)] = &[
+    (
+        "kinserve_http_requests_total",
+        "HTTP requests answered, by method, route and status.",
+    ),
+    (
+        "kinserve_http_request_duration_seconds",
+        "HTTP request latency in seconds, by method and route.",
+    ),
+    (
+        "kinserve_http_rejected_total",
+        "HTTP requests refused before a handler ran, by reason.",
+    ),
+    (
+        "kinserve_grpc_requests_total",
+        "gRPC calls answered, by method and status code.",
+    ),
+    (
+        "kinserve_grpc_request_duration_seconds",
+        "gRPC call latency in seconds (streams: until the response headers), by method.",
+    ),
+    (
+        "kinserve_grpc_rejected_total",
+        "gRPC calls refused before a handler ran, by reason.",
+    ),
+    (
+        "kinserve_ws_messages_total",
+        "WebSocket FK messages answered, by result (ok or error).",
+    ),
+    (
+        "kinserve_streams_open",
+        "Open FK streams, by protocol (websocket, grpc).",
+    ),
+    (
+        "kinserve_stream_duration_seconds",
+        "Lifetime of closed FK streams in seconds, by protocol.",
+    ),
+    (
+        "kinserve_ik_solves_total",
+        "Inverse-kinematics targets solved (REST, WebSocket, gRPC, single and batch), by converged (true or false).",
+    ),
+    (
+        "kinserve_poses_computed_total",
+        "Poses computed, by robot (built-ins and the first registered names; others as `other`) and protocol.",
+    ),
+    ("kinserve_robots", "Robots in the registry, by source."),
+    (
+        "kinserve_store_write_duration_seconds",
+        "Latency of durable registry writes in seconds, by operation (put, delete).",
+    ),
+    (
+        "kinserve_build_info",
+        "Always 1; the version label says which build answers.",
+    ),
+    (
+        "process_resident_memory_bytes",
+        "Resident set size of the process in bytes.",
+    ),
+    (
+        "process_virtual_memory_bytes",
+        "Virtual memory size of the process in bytes.",
+    ),
+    (
+        "process_cpu_seconds_total",
+        "User and system CPU time of the process in seconds.",
+    ),
+    ("process_open_fds", "Open file descriptors of the process."),
+    (
+        "process_start_time_seconds",
+        "Start time of the process since the Unix epoch in seconds.",
+    ),
+    ("process_threads", "Threads of the process."),
+];
+
+fn describe_families() {
+    for (name, help) in FAMILIES {
+        let kind = if name.starts_with("process_") || *name == "kinserve_build_info" {
+            "gauge"
+        } else if name.ends_with("_total") {
+            "counter"
+        } else if name.ends_with("_seconds") {
+            "histogram"
+        } else {
+            "gauge"
+        };
+        match kind {
+            "counter" => metrics::describe_counter!(*name, *help),
+            "histogram" => metrics::describe_histogram!(*name, metrics::Unit::Seconds, *help),
+            _ => metrics::describe_gauge!(*name, *help),
+        }
+    }
+}
+
+/// The front door a pose was computed for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Protocol {
+    /// REST (single and batch FK).
+    Rest,
+    /// The WebSocket stream.
+    WebSocket,
+    /// gRPC (unary, batch and stream).
+    Grpc,
+}
+
+impl Protocol {
+    /// The label value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Protocol::Rest => "rest",
+            Protocol::WebSocket => "websocket",
+            Protocol::Grpc => "grpc",
+        }
+    }
+}
+
+/// Registered robots that get their own `robot` label; later ones count as `other`.
+pub const MAX_REGISTERED_ROBOT_LABELS: usize = 64;
+
+/// The `robot` label for a robot: its name for built-ins, and for registered
+/// robots while fewer than [`MAX_REGISTERED_ROBOT_LABELS`] names have one.
+pub fn robot_label(name: &str, builtin: bool) -> String {
+    static LABELLED: OnceLock<Mutex<HashSet<String>>> = OnceLock::new();
+    if builtin {
+        return name.to_string();
+    }
+    let set = LABELLED.get_or_init(|| Mutex::new(HashSet::new()));
+    let mut set = set.lock().unwrap_or_else(|p| p.into_inner());
+    if set.contains(name) || set.len() < MAX_REGISTERED_ROBOT_LABELS {
+        set.insert(name.to_string());
+        name.to_string()
+    } else {
+        "other".to_string()
+    }
+}
+
+/// A robot's `kinserve_poses_computed_total` counters, one per protocol,
+/// resolved once (no label work per request).
+#[derive(Debug)]
+pub struct PoseCounters([metrics::Counter; 3]);
+
+impl PoseCounters {
+    /// The counters of the robot labelled `robot` (see [`robot_label`]).
+    pub fn new(robot: &str) -> PoseCounters {
+        let c = |p: Protocol| metrics::counter!("kinserve_poses_computed_total", "robot" => robot.to_string(), "protocol" => p.as_str());
+        PoseCounters([c(Protocol::Rest), c(Protocol::WebSocket), c(Protocol::Grpc)])
+    }
+
+    /// Counts `n` poses computed for `protocol`.
+    pub fn add(&self, protocol: Protocol, n: u64) {
+        let i = match protocol {
+            Protocol::Rest => 0,
+            Protocol::WebSocket => 1,
+            Protocol::Grpc => 2,
+        };
+        if let Some(c) = self.0.get(i) {
+            c.increment(n);
+        }
+    }
+}
+
+/// An open FK stream: counted in `kinserve_streams_open` while it lives, its
+/// lifetime recorded in `kinserve_stream_duration_seconds` when dropped.
+pub struct StreamGuard {
+    protocol: Protocol,
+    start: std::time::Instant,
+}
+
+impl StreamGuard {
+    /// Opens a stream of `protocol`.
+    pub fn open(protocol: Protocol) -> StreamGuard {
+        metrics::gauge!("kinserve_streams_open", "protocol" => protocol.as_str()).increment(1.0);
+        StreamGuard {
+            protocol,
+            start: std::time::Instant::now(),
+        }
+    }
+}
+
+impl Drop for StreamGuard {
+    fn drop(&mut self) {
+        let p = self.protocol.as_str();
+        metrics::gauge!("kinserve_streams_open", "protocol" => p).decrement(1.0);
+        metrics::histogram!("kinserve_stream_duration_seconds", "protocol" => p)
+            .record(self.start.elapsed().as_secs_f64());
+    }
+}
+
+/// Refreshes the `process_*` gauges from `/proc/self` (Linux; elsewhere nothing).
+pub fn update_process_metrics() {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return;
+    };
+    // Fields after the parenthesised command name; see proc(5).
+    let Some(rest) = stat.rsplit_once(')').map(|(_, r)| r) else {
+        return;
+    };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let num = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok());
+    // Linux reports times in clock ticks (USER_HZ, 100 on every platform the
+    // kernel ABI supports) and the resident set in pages (4096 bytes here).
+    const TICKS: f64 = 100.0;
+    const PAGE: f64 = 4096.0;
+    if let (Some(utime), Some(stime)) = (num(11), num(12)) {
+        metrics::gauge!("process_cpu_seconds_total").set((utime + stime) / TICKS);
+    }
+    if let Some(threads) = num(17) {
+        metrics::gauge!("process_threads").set(threads);
+    }
+    if let Some(vsize) = num(20) {
+        metrics::gauge!("process_virtual_memory_bytes").set(vsize);
+    }
+    if let Some(rss) = num(21) {
+        metrics::gauge!("process_resident_memory_bytes").set(rss * PAGE);
+    }
+    if let Some(start) = num(19).zip(boot_time()) {
+        metrics::gauge!("process_start_time_seconds").set(start.1 + start.0 / TICKS);
+    }
+    if let Ok(fds) = std::fs::read_dir("/proc/self/fd") {
+        metrics::gauge!("process_open_fds").set(fds.count() as f64);
+    }
+}
+
+/// System boot time (seconds since the epoch), from `/proc/stat`.
+fn boot_time() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    stat.lines()
+        .find_map(|l| l.strip_prefix("btime "))
+        .and_then(|v| v.trim().parse().ok())
+}
+
+/// Counts one WebSocket FK message answered (`ok`: a pose, else an error reply).
+pub fn ws_message(ok: bool) {
+    static OK: OnceLock<metrics::Counter> = OnceLock::new();
+    static ERR: OnceLock<metrics::Counter> = OnceLock::new();
+    let (cell, result) = if ok { (&OK, "ok") } else { (&ERR, "error") };
+    cell.get_or_init(|| metrics::counter!("kinserve_ws_messages_total", "result" => result))
+        .increment(1);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registered_robot_labels_are_bounded_and_built_ins_always_named() {
+        let labels: HashSet<String> = (0..3 * MAX_REGISTERED_ROBOT_LABELS)
+            .map(|i| robot_label(&format!("arm-{i}"), false))
+            .collect();
+        assert!(labels.contains("other"));
+        assert!(
+            labels.len() <= MAX_REGISTERED_ROBOT_LABELS + 1,
+            "{}",
+            labels.len()
+        );
+        // A name that got a label keeps it; built-ins are always named.
+        assert_eq!(robot_label("arm-0", false), "arm-0");
+        assert_eq!(robot_label("puma560", true), "puma560");
+    }
 }

@@ -23,6 +23,7 @@ pub struct Quaternion {
 
 /// A pose in the world frame, in the robot's length unit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}))]
 pub struct Pose {
     /// Homogeneous 4×4 matrix, row-major: `[[r11,r12,r13,x],[r21,r22,r23,y],[r31,r32,r33,z],[0,0,0,1]]`.
     pub matrix: [[f64; 4]; 4],
@@ -55,6 +56,7 @@ impl Pose {
 
 /// Result of one FK evaluation, as REST and the CLI return it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "pose": {"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}}))]
 pub struct FkOutput {
     /// Robot name.
     pub robot: String,

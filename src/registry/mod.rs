@@ -3,18 +3,20 @@
 //! publish a new snapshot (copy-on-write) only after the store has made the
 //! change durable.
 
+pub mod builtin;
 mod store;
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use arc_swap::ArcSwap;
 
 pub use store::{FileStore, MemoryStore, Store};
 
 use crate::error::{Error, Result};
-use crate::model::{ModelLimits, Robot, load_robot_file_with};
+use crate::model::{ModelLimits, Robot};
+use crate::telemetry::{PoseCounters, Protocol, robot_label};
 
 /// Where a robot came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,6 +34,29 @@ pub struct Entry {
     pub robot: Robot,
     /// Built-in or registered.
     pub origin: Origin,
+    /// Its `kinserve_poses_computed_total` counters, resolved on first use.
+    poses: OnceLock<PoseCounters>,
+}
+
+impl Entry {
+    /// An entry for `robot`.
+    pub fn new(robot: Robot, origin: Origin) -> Entry {
+        Entry {
+            robot,
+            origin,
+            poses: OnceLock::new(),
+        }
+    }
+
+    /// Counts `n` poses computed for this robot over `protocol`.
+    pub fn count_poses(&self, protocol: Protocol, n: u64) {
+        self.poses
+            .get_or_init(|| {
+                let label = robot_label(self.robot.name(), self.origin == Origin::Builtin);
+                PoseCounters::new(&label)
+            })
+            .add(protocol, n);
+    }
 }
 
 /// How a registration treats an existing robot of the same name.
@@ -50,6 +75,8 @@ pub struct Registry {
     map: ArcSwap<Map>,
     writer: Mutex<()>,
     store: Box<dyn Store>,
+    /// Most registered (not built-in) robots; a new one beyond is refused.
+    max_registered: usize,
 }
 
 impl std::fmt::Debug for Registry {
@@ -76,41 +103,42 @@ impl Registry {
             map: ArcSwap::from_pointee(Map::new()),
             writer: Mutex::new(()),
             store,
+            max_registered: usize::MAX,
         }
     }
 
-    /// Loads every `*.json` in `dir` as a read-only built-in. Invalid files are
-    /// reported and skipped. A missing directory loads nothing.
-    pub fn load_builtins(&self, dir: &Path, limits: &ModelLimits) -> LoadReport {
+    /// The same registry, refusing a new registered robot once `max` are held
+    /// ([`Error::Full`]); replacing one is always allowed.
+    pub fn with_max_registered(mut self, max: usize) -> Registry {
+        self.max_registered = max;
+        self
+    }
+
+    /// Loads the built-in robots, read-only: the ones embedded in the binary,
+    /// then every `*.json` in `dir` (when given), which adds robots or
+    /// replaces embedded ones of the same name. Invalid files are reported
+    /// and skipped.
+    pub fn load_builtins(&self, dir: Option<&Path>, limits: &ModelLimits) -> LoadReport {
         let mut report = LoadReport::default();
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return report;
-        };
-        let mut paths: Vec<_> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "json"))
-            .collect();
-        paths.sort();
+        let files = builtin::embedded(limits).chain(
+            dir.map(|d| builtin::from_dir(d, limits))
+                .into_iter()
+                .flatten(),
+        );
         let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
         let mut map = Map::clone(&self.map.load());
-        for path in paths {
-            let label = path.display().to_string();
-            let result = load_robot_file_with(&path, limits).map_err(Error::from);
+        for (label, result) in files {
             match result {
                 Ok(robot) => {
                     map.insert(
                         robot.name().to_string(),
-                        Arc::new(Entry {
-                            robot,
-                            origin: Origin::Builtin,
-                        }),
+                        Arc::new(Entry::new(robot, Origin::Builtin)),
                     );
-                    report.loaded += 1;
                 }
                 Err(e) => report.skipped.push((label, e)),
             }
         }
+        report.loaded = map.values().filter(|e| e.origin == Origin::Builtin).count();
         self.map.store(Arc::new(map));
         report
     }
@@ -134,10 +162,7 @@ impl Registry {
                     }
                     map.insert(
                         robot.name().to_string(),
-                        Arc::new(Entry {
-                            robot,
-                            origin: Origin::Registered,
-                        }),
+                        Arc::new(Entry::new(robot, Origin::Registered)),
                     );
                     report.loaded += 1;
                 }
@@ -180,15 +205,23 @@ impl Registry {
             Some(_) => false,
             None => true,
         };
-        self.store.save(robot.spec())?;
+        if created {
+            let registered = current
+                .values()
+                .filter(|e| e.origin == Origin::Registered)
+                .count();
+            if registered >= self.max_registered {
+                return Err(Error::Full {
+                    detail: format!(
+                        "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
+                        self.max_registered
+                    ),
+                });
+            }
+        }
+        timed_write("put", || self.store.save(robot.spec()))?;
         let mut map = Map::clone(&current);
-        map.insert(
-            name,
-            Arc::new(Entry {
-                robot,
-                origin: Origin::Registered,
-            }),
-        );
+        map.insert(name, Arc::new(Entry::new(robot, Origin::Registered)));
         self.map.store(Arc::new(map));
         Ok(created)
     }
@@ -201,6 +234,7 @@ impl Registry {
             None => {
                 return Err(Error::NotFound {
                     name: name.to_string(),
+                    suggestions: Vec::new(),
                 });
             }
             Some(e) if e.origin == Origin::Builtin => {
@@ -210,10 +244,20 @@ impl Registry {
             }
             Some(_) => {}
         }
-        self.store.delete(name)?;
+        timed_write("delete", || self.store.delete(name))?;
         let mut map = Map::clone(&current);
         map.remove(name);
         self.map.store(Arc::new(map));
         Ok(())
     }
+}
+
+/// Runs a durable store write, recording its latency in
+/// `kinserve_store_write_duration_seconds{op}`.
+fn timed_write<T>(op: &'static str, write: impl FnOnce() -> Result<T>) -> Result<T> {
+    let start = std::time::Instant::now();
+    let r = write();
+    metrics::histogram!("kinserve_store_write_duration_seconds", "op" => op)
+        .record(start.elapsed().as_secs_f64());
+    r
 }

@@ -354,7 +354,10 @@ async fn a_full_disk_is_507_and_unavailable_and_changes_nothing() {
     };
     robot.links.push(pb::Link {
         joint: pb::JointType::Revolute as i32,
-        a: 1.0,
+        a: Some(1.0),
+        alpha: Some(0.0),
+        d: Some(0.0),
+        theta: Some(0.0),
         ..Default::default()
     });
     let err = g

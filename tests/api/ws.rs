@@ -110,7 +110,7 @@ async fn each_message_gets_one_reply_in_order_and_a_bad_message_does_not_end_the
     assert_eq!(fields(&p), ["joints[2]"]);
     let p = error_of(&replies[4], &ids[4], 400);
     assert_eq!(fields(&p), ["joints[0]"]);
-    let p = error_of(&replies[5], &ids[5], 422);
+    let p = error_of(&replies[5], &ids[5], 400);
     assert_eq!(fields(&p), ["extra"]);
 
     assert_eq!(replies[6]["id"], ids[6]);

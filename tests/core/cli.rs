@@ -82,9 +82,12 @@ fn fk_errors_go_to_stderr_with_a_non_zero_exit() {
 
 #[test]
 fn validate_passes_every_robot_file_and_reports_bad_ones_by_field() {
+    // Every model file (robots/ also holds a README.md).
     let files: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/robots"))
         .unwrap()
-        .map(|e| e.unwrap().path().display().to_string())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .map(|p| p.display().to_string())
         .collect();
     let out = kinserve().arg("validate").args(&files).output().unwrap();
     assert!(
@@ -110,4 +113,79 @@ fn validate_passes_every_robot_file_and_reports_bad_ones_by_field() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("links[0].limits"), "{err}");
     assert!(String::from_utf8_lossy(&out.stdout).contains("puma560.json: ok"));
+}
+
+#[test]
+fn closed_form_prints_the_rest_json_and_each_rendering() {
+    let out = kinserve()
+        .args(["closed-form", "--robot", "planar_2dof"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["transform"]["text"][0][3], "a1*c1 + a2*c12");
+    assert_eq!(v["symbols"]["a2"], 0.3);
+    let text = kinserve()
+        .args([
+            "closed-form",
+            "--model",
+            "robots/scara_4dof.json",
+            "--format",
+            "text",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert_eq!(
+        text.lines().nth(2),
+        Some("0 | 0 | -1 | d1 - d4 - d3"),
+        "{text}"
+    );
+    let latex = kinserve()
+        .args(["closed-form", "--robot", "alpha_ii", "--format", "latex"])
+        .output()
+        .unwrap();
+    let latex = String::from_utf8_lossy(&latex.stdout);
+    assert!(
+        latex.starts_with("\\begin{bmatrix}") && latex.contains("c_{234}"),
+        "{latex}"
+    );
+    let mathml = kinserve()
+        .args(["closed-form", "--robot", "puma560", "--format", "mathml"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&mathml.stdout).starts_with("<math "));
+}
+
+#[test]
+fn urdf_prints_the_document_and_errors_exit_non_zero() {
+    let out = kinserve()
+        .args(["urdf", "--robot", "alpha_ii"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let robot =
+        kinserve::model::load_robot_file(std::path::Path::new("robots/alpha_ii.json")).unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout),
+        kinserve::model::to_urdf(&robot)
+    );
+    for args in [
+        &["urdf", "--robot", "nope"][..],
+        &["closed-form", "--robot", "../puma560"],
+        &["closed-form", "--model", "no/such/file.json"],
+    ] {
+        let out = kinserve().args(args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+        assert!(!out.stderr.is_empty(), "{args:?}");
+    }
 }

@@ -1,4 +1,5 @@
 //! Core tests: kinematics, model validation, robot files, CLI.
+mod builtins;
 mod cli;
 mod closed_forms;
 mod fuzz_corpus;

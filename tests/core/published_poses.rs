@@ -335,14 +335,105 @@ fn real_arm_files_load() {
         "panda",
         "kuka_kr5",
         "abb_irb140",
+        "kinova_gen3",
     ] {
         let r = load(name);
-        let n = if name == "panda" { 7 } else { 6 };
+        let n = if matches!(name, "panda" | "kinova_gen3") {
+            7
+        } else {
+            6
+        };
         let q: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64 + 1.0)).collect();
         let t = r.fk_unchecked(&q);
         let (p, m) = (t.position(), t.matrix());
         for i in 0..3 {
             assert!((p[i] - m[i][3]).abs() < 1e-15, "{name}: position vs matrix");
+        }
+    }
+}
+
+// ---------------------------------------------------------------- Kinova Gen3
+
+/// Kinova Gen3 (7 DoF), classic DH of Kinova's user guide. Published poses:
+/// at q = 0 the arm stands straight up: the tool is at the sum of the guide's
+/// link dimensions, x = 0, y = -(0.0054 + 0.0064 + 0.0064 + 0.0064) = -0.0246,
+/// z = 0.1564 + 0.1284 + 0.2104 + 0.2104 + 0.2084 + 0.1059 + 0.1059 + 0.0615
+/// = 1.1873 m, with the tool frame aligned with the base frame; with joint 2 at
+/// +90° the arm above the shoulder (0.9025 m) lies along +x at the shoulder
+/// height 0.2848 m. Both at 1e-9 (closed form from the published table).
+#[test]
+fn kinova_gen3_zero_and_shoulder_poses() {
+    let r = load("kinova_gen3");
+    assert_eq!(r.dof(), 7);
+    let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    assert_pose(
+        "gen3 zero",
+        &fk(&r, &[0.0; 7]),
+        id,
+        [0.0, -0.0246, 1.1873],
+        TOL,
+    );
+    let q = [0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let t = fk(&r, &q);
+    for (i, want) in [0.9025, -0.0246, 0.2848].into_iter().enumerate() {
+        assert!(
+            (t[i][3] - want).abs() <= TOL,
+            "gen3 q2 = 90°: p[{i}] = {}",
+            t[i][3]
+        );
+    }
+}
+
+/// The same arm against an independent published model: the joint axes of
+/// Kinova's kortex_description URDF (gen3, 7 DoF) at q = 0, as screws
+/// (direction, point on the axis; metres), and the tool 0.0615 m above joint 7.
+/// Product of exponentials p = e^{[S1]q1} ⋯ e^{[S7]q7} p0 against the DH
+/// model's tool position at several configurations; tolerance 3e-4 m (the
+/// guide rounds to 0.1 mm what the URDF gives to 0.01 mm).
+#[test]
+fn kinova_gen3_agrees_with_the_kortex_urdf_joint_axes() {
+    const AXES: [([f64; 3], [f64; 3]); 7] = [
+        ([0.0, 0.0, -1.0], [0.0, 0.0, 0.15643]),
+        ([0.0, 1.0, 0.0], [0.0, -0.005375, 0.28481]),
+        ([0.0, 0.0, -1.0], [0.0, -0.01175, 0.49519]),
+        ([0.0, 1.0, 0.0], [0.0, -0.018125, 0.70557]),
+        ([0.0, 0.0, -1.0], [0.0, -0.0245, 0.914]),
+        ([0.0, 1.0, 0.0], [0.0, -0.0245, 1.01993]),
+        ([0.0, 0.0, -1.0], [0.0, -0.0245, 1.12586]),
+    ];
+    /// Rotates `x` by `q` about the axis `w` through `p` (Rodrigues).
+    fn turn(x: [f64; 3], (w, p): ([f64; 3], [f64; 3]), q: f64) -> [f64; 3] {
+        let v = [x[0] - p[0], x[1] - p[1], x[2] - p[2]];
+        let (s, c) = q.sin_cos();
+        let dot = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+        let cross = [
+            w[1] * v[2] - w[2] * v[1],
+            w[2] * v[0] - w[0] * v[2],
+            w[0] * v[1] - w[1] * v[0],
+        ];
+        std::array::from_fn(|i| p[i] + v[i] * c + cross[i] * s + w[i] * dot * (1.0 - c))
+    }
+    let r = load("kinova_gen3");
+    let configs = [
+        [0.0; 7],
+        [0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.5236, 0.6981, 0.8727, 1.0472, 1.2217, 1.3963, 1.5708],
+        [-1.2, 0.9, 2.5, -1.7, 0.3, -2.0, 1.1],
+        [PI, -FRAC_PI_4, -PI / 3.0, 2.2, -0.4, 1.9, -3.0],
+    ];
+    for q in configs {
+        let mut p = [0.0, -0.0245, 1.12586 + 0.0615];
+        for (axis, qi) in AXES.iter().zip(q).rev() {
+            p = turn(p, *axis, qi);
+        }
+        let t = fk(&r, &q);
+        for i in 0..3 {
+            assert!(
+                (t[i][3] - p[i]).abs() <= 3e-4,
+                "gen3 vs kortex URDF at {q:?}: p[{i}] = {} vs {}",
+                t[i][3],
+                p[i]
+            );
         }
     }
 }

@@ -10,8 +10,10 @@ use crate::robot::{ModelLimits, Robot};
 use crate::spec::RobotSpec;
 
 /// Parses JSON into `T`, turning serde errors into [`ModelError`]s that name the field.
-/// Syntax errors, wrong types and bad values are [`ModelError::Malformed`]; unknown
-/// and missing fields (well-formed JSON breaking the schema) are [`ModelError::Invalid`].
+/// Every parse error is [`ModelError::Malformed`] (HTTP 400): syntax errors
+/// (with line and column), wrong types, unknown or missing fields and unknown
+/// enum values alike. Rules broken by a body that parses are
+/// [`ModelError::Invalid`] (HTTP 422), from validation.
 pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
     let de = &mut serde_json::Deserializer::from_slice(bytes);
     let value: T = serde_path_to_error::deserialize(&mut *de).map_err(json_error)?;
@@ -54,8 +56,13 @@ fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> ModelError {
     }
     let inner = e.into_inner();
     let mut message = inner.to_string();
-    // Strip serde_json's " at line L column C": the path already says where.
-    if let Some(i) = message.find(" at line ") {
+    // For data errors the path says where: strip serde_json's " at line L column C".
+    // Syntax errors keep it (there is no field to name, and the position helps).
+    let syntax = matches!(
+        inner.classify(),
+        serde_json::error::Category::Syntax | serde_json::error::Category::Eof
+    );
+    if !syntax && let Some(i) = message.find(" at line ") {
         message.truncate(i);
     }
     let structural = message.starts_with("unknown field") || message.starts_with("missing field");
@@ -70,13 +77,13 @@ fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> ModelError {
             };
         }
     }
+    // One policy for every body: what cannot be read into the schema (syntax,
+    // wrong type, unknown or missing field, unknown enum value) is malformed
+    // (HTTP 400); rules broken by a body that reads are invalid (HTTP 422).
     let v = FieldViolation::new(clip(path, MAX_PATH_CHARS), clip(message, MAX_MESSAGE_CHARS));
-    match inner.classify() {
-        serde_json::error::Category::Data if structural => ModelError::invalid(vec![v]),
-        _ => ModelError::Malformed {
-            detail: v.to_string(),
-            violations: vec![v],
-        },
+    ModelError::Malformed {
+        detail: v.to_string(),
+        violations: vec![v],
     }
 }
 

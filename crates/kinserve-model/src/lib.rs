@@ -18,14 +18,17 @@
 //! With the `openapi` feature the schema types also derive `utoipa::ToSchema`.
 
 mod base_tool;
+mod closed_form;
 mod error;
 mod ik;
 mod joints;
 mod json;
 mod robot;
 mod spec;
+mod urdf;
 mod velocity;
 
+pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
 pub use error::{FieldViolation, ModelError, Result, summary};
 pub use ik::{
     IK_MAX_ITERATIONS, IK_MAX_RESTARTS, IK_TOLERANCE_RANGE, IkAnswer, IkBatch, IkBatchSpec,
@@ -38,6 +41,7 @@ pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
     TransformSpec,
 };
+pub use urdf::to_urdf;
 pub use velocity::{JacobianAnswer, ReferenceFrame};
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.

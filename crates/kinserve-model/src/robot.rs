@@ -188,7 +188,12 @@ impl Robot {
             ));
         }
         for (i, (x, j)) in q.iter().zip(&self.joints).enumerate() {
-            if let Some(message) = self.check_value(*x, j, opts) {
+            if let Some(mut message) = self.check_value(*x, j, opts) {
+                if x.abs() > std::f64::consts::PI && self.looks_like_degrees(q, opts) {
+                    message.push_str(
+                        "; read as degrees every value is within the limits: send angle_unit \"deg\"",
+                    );
+                }
                 return Err(ModelError::invalid_field(
                     format!("{}[{i}]", field()),
                     message,
@@ -196,6 +201,22 @@ impl Robot {
             }
         }
         Ok(JointVector::new(self, q, opts.angle_unit.to_rad()))
+    }
+
+    /// Whether `q`, sent in rad, would keep every limit if its revolute values
+    /// were degrees (the usual mistake: `[0, 90, -90]`). Asked only for an
+    /// offending value beyond ±π, which is unlikely to be meant as radians.
+    fn looks_like_degrees(&self, q: &[f64], opts: &FkOptions) -> bool {
+        if opts.angle_unit != AngleUnit::Rad || !opts.check_limits {
+            return false;
+        }
+        let deg = FkOptions {
+            angle_unit: AngleUnit::Deg,
+            check_limits: true,
+        };
+        q.iter()
+            .zip(&self.joints)
+            .all(|(x, j)| self.check_value(*x, j, &deg).is_none())
     }
 
     /// What is wrong with value `x` of joint `j`, if anything.
@@ -219,16 +240,41 @@ impl Robot {
         if internal >= lo && internal <= hi {
             return None;
         }
-        let (unit, k) = match j.kind {
-            JointKind::Revolute => (opts.angle_unit.as_str(), 1.0 / scale),
-            _ => (self.spec.length_unit.as_str(), 1.0),
-        };
-        Some(format!(
-            "{x} {unit} is outside the limits [{}, {}] {unit} of joint '{}'",
-            lo * k,
-            hi * k,
-            j.name
-        ))
+        Some(self.limits_message(x, lo, hi, j, opts.angle_unit))
+    }
+
+    /// "`x` unit is outside the limits [lo, hi] unit of joint 'name'", limits
+    /// rounded to 6 significant digits in the request's unit, and in the
+    /// model's own angle unit too when that differs.
+    fn limits_message(&self, x: f64, lo: f64, hi: f64, j: &Joint, unit: AngleUnit) -> String {
+        if j.kind != JointKind::Revolute {
+            let u = self.spec.length_unit.as_str();
+            return format!(
+                "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
+                round6(lo),
+                round6(hi),
+                j.name
+            );
+        }
+        let k = 1.0 / unit.to_rad();
+        let mut m = format!(
+            "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
+            round6(lo * k),
+            round6(hi * k),
+            j.name,
+            u = unit.as_str()
+        );
+        let model = self.spec.angle_unit;
+        if model != unit {
+            let km = 1.0 / model.to_rad();
+            m.push_str(&format!(
+                " ([{}, {}] {} in the model)",
+                round6(lo * km),
+                round6(hi * km),
+                model.as_str()
+            ));
+        }
+        m
     }
 
     /// Checks many configurations stored back to back (`lens[i]` values for
@@ -401,4 +447,19 @@ fn check_limits(
     };
     v.push(FieldViolation::new(field, message));
     None
+}
+
+/// `x` with at most 6 significant digits, without trailing zeros (`1.91986`, `0.5`, `160`).
+fn round6(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{}", if x == 0.0 { 0.0 } else { x });
+    }
+    let digits = 5 - x.abs().log10().floor() as i32;
+    let s = format!("{:.*}", digits.max(0) as usize, x);
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" { "0".into() } else { s }
 }

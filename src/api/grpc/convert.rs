@@ -7,6 +7,7 @@ use crate::model::{
     AngleUnit, ConventionSpec, FkOptions, JointType, LengthUnit, LinkSpec, QuaternionSpec,
     RobotSpec, TransformSpec,
 };
+use crate::model::{ClosedForm, SymbolicMatrix};
 use crate::registry::Origin;
 
 /// Proto → model robot. Field paths match REST (`links[3].joint`, `base.matrix`).
@@ -40,6 +41,8 @@ pub fn robot_from_pb(r: pb::Robot) -> Result<RobotSpec> {
         }
     };
     let mut links = Vec::with_capacity(r.links.len());
+    // Missing values are parse errors (400-class), like a missing JSON field.
+    let mut missing = Vec::new();
     for (i, l) in r.links.into_iter().enumerate() {
         let joint = match pb::JointType::try_from(l.joint) {
             Ok(pb::JointType::Revolute) => JointType::Revolute,
@@ -53,14 +56,36 @@ pub fn robot_from_pb(r: pb::Robot) -> Result<RobotSpec> {
                 JointType::Fixed
             }
         };
+        let mut required = |name: &str, x: Option<f64>| {
+            x.unwrap_or_else(|| {
+                missing.push(FieldViolation::new(
+                    format!("links[{i}].{name}"),
+                    format!("missing field `{name}`"),
+                ));
+                0.0
+            })
+        };
+        let (a, alpha, d, theta) = (
+            required("a", l.a),
+            required("alpha", l.alpha),
+            required("d", l.d),
+            required("theta", l.theta),
+        );
         links.push(LinkSpec {
             name: l.name,
             joint,
-            a: l.a,
-            alpha: l.alpha,
-            d: l.d,
-            theta: l.theta,
+            a,
+            alpha,
+            d,
+            theta,
             limits: l.limits.map(|x| [x.lo, x.hi]),
+        });
+    }
+    if !missing.is_empty() {
+        let detail = crate::model::summary(&missing);
+        return Err(Error::Malformed {
+            detail,
+            violations: missing,
         });
     }
     let base = r.base.map(|t| transform_from_pb(t, "base", &mut v));
@@ -177,10 +202,10 @@ pub fn robot_to_pb(s: &RobotSpec) -> pb::Robot {
                     JointType::Prismatic => pb::JointType::Prismatic,
                     JointType::Fixed => pb::JointType::Fixed,
                 } as i32,
-                a: l.a,
-                alpha: l.alpha,
-                d: l.d,
-                theta: l.theta,
+                a: Some(l.a),
+                alpha: Some(l.alpha),
+                d: Some(l.d),
+                theta: Some(l.theta),
                 limits: l.limits.map(|[lo, hi]| pb::Limits { lo, hi }),
             })
             .collect(),
@@ -212,7 +237,9 @@ pub fn origin_to_pb(o: Origin) -> pb::RobotSource {
 }
 
 /// Request options → evaluation options and whether frames were asked for.
-/// Absent options: radians, no frames, limits checked.
+/// Absent options: radians, no frames, limits checked. The deprecated
+/// `include_frames` / `skip_limit_check` count when their new twins are
+/// absent; twins that disagree are refused.
 pub fn options_from_pb(o: Option<&pb::FkOptions>) -> Result<(FkOptions, bool)> {
     let Some(o) = o else {
         return Ok((FkOptions::default(), false));
@@ -221,16 +248,42 @@ pub fn options_from_pb(o: Option<&pb::FkOptions>) -> Result<(FkOptions, bool)> {
         Ok(pb::AngleUnit::Unspecified | pb::AngleUnit::Rad) => AngleUnit::Rad,
         Ok(pb::AngleUnit::Deg) => AngleUnit::Deg,
         Err(_) => {
-            return Err(Error::invalid_field(
+            return Err(Error::malformed_field(
                 "options.angle_unit",
-                "unknown angle unit",
+                "unknown angle unit: use ANGLE_UNIT_RAD or ANGLE_UNIT_DEG",
             ));
         }
     };
-    Ok((
-        FkOptions::new(Some(angle_unit), Some(!o.skip_limit_check)),
-        o.include_frames,
-    ))
+    #[allow(deprecated, reason = "the old names are still honoured")]
+    let (old_frames, old_check) = (o.include_frames, !o.skip_limit_check);
+    let frames = twin(
+        "options.frames",
+        "include_frames",
+        o.frames,
+        old_frames,
+        false,
+    )?;
+    let check = twin(
+        "options.check_limits",
+        "skip_limit_check",
+        o.check_limits,
+        old_check,
+        true,
+    )?;
+    Ok((FkOptions::new(Some(angle_unit), Some(check)), frames))
+}
+
+/// A new option and its deprecated twin: the new one when present (it must
+/// not contradict an old one that was set away from its default), else the old.
+fn twin(field: &str, old_name: &str, new: Option<bool>, old: bool, default: bool) -> Result<bool> {
+    match new {
+        Some(v) if old != default && v != old => Err(Error::malformed_field(
+            field,
+            format!("contradicts the deprecated `{old_name}`: give only the new field"),
+        )),
+        Some(v) => Ok(v),
+        None => Ok(old),
+    }
 }
 
 /// Transform → proto pose.
@@ -246,7 +299,46 @@ pub fn pose_to_pb(t: &Transform) -> pb::Pose {
             y: p[1],
             z: p[2],
         }),
+        #[allow(deprecated, reason = "still filled for older clients")]
         orientation: Some(pb::Quaternion { w, x, y, z }),
         rpy: Some(pb::Rpy { roll, pitch, yaw }),
+        quaternion: Some(pb::Quaternion { w, x, y, z }),
+    }
+}
+
+/// A closed form as its protobuf message.
+pub fn closed_form_to_pb(cf: ClosedForm) -> pb::GetClosedFormResponse {
+    let matrix = |m: SymbolicMatrix| pb::SymbolicMatrix {
+        text: m.text.into_iter().flatten().collect(),
+        latex: m.latex,
+        mathml: m.mathml,
+    };
+    let numbers = |m: [[f64; 4]; 4]| pb::Matrix4 {
+        values: m.iter().flatten().copied().collect(),
+    };
+    pb::GetClosedFormResponse {
+        robot: cf.robot,
+        convention: convention_to_pb(cf.convention) as i32,
+        length_unit: length_unit_to_pb(cf.length_unit) as i32,
+        variables: cf
+            .variables
+            .into_iter()
+            .map(|v| pb::JointVariable {
+                name: v.name,
+                row: u32::try_from(v.row).unwrap_or(u32::MAX),
+                joint: v.joint,
+                kind: match v.kind {
+                    JointType::Revolute => pb::JointType::Revolute,
+                    JointType::Prismatic => pb::JointType::Prismatic,
+                    JointType::Fixed => pb::JointType::Fixed,
+                } as i32,
+                offset: v.offset,
+            })
+            .collect(),
+        symbols: cf.symbols.into_iter().collect(),
+        link_transforms: cf.link_transforms.into_iter().map(matrix).collect(),
+        transform: Some(matrix(cf.transform)),
+        base: Some(numbers(cf.base)),
+        tool: cf.tool.map(numbers),
     }
 }

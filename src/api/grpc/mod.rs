@@ -1,6 +1,7 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and reflection.
 
 mod convert;
+mod grpc_metrics;
 mod oversize;
 pub mod status;
 
@@ -19,6 +20,7 @@ use tonic::{Request, Response, Status, Streaming};
 use crate::error::Error;
 use crate::registry::PutMode;
 use crate::service::{Configurations, Service};
+use crate::telemetry::{Protocol, StreamGuard};
 
 /// Generated protobuf and tonic code for `kinematics.v1`.
 #[allow(missing_docs, clippy::all)]
@@ -63,6 +65,8 @@ pub struct GrpcSettings {
     pub request_timeout: Duration,
     /// A stream with no message from the client for this long is closed.
     pub stream_idle_timeout: Duration,
+    /// One access-log line per call (target `kinserve::access`).
+    pub access_log: bool,
 }
 
 /// The gRPC service over the shared [`Service`].
@@ -75,8 +79,17 @@ pub struct GrpcService {
 }
 
 /// The `authorization` metadata value of a request, if readable.
-fn authorization<T>(req: &Request<T>) -> Option<&str> {
-    req.metadata().get("authorization")?.to_str().ok()
+/// Two or more values are malformed: which one counts would be a guess.
+fn authorization<T>(req: &Request<T>) -> Result<Option<&str>, Error> {
+    let mut all = req.metadata().get_all("authorization").iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one authorization metadata value, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
 }
 
 impl GrpcService {
@@ -94,12 +107,13 @@ impl GrpcService {
         joints: &[f64],
         options: Option<&pb::FkOptions>,
     ) -> Result<(pb::Pose, Vec<pb::Pose>, pb::LengthUnit), Error> {
-        let entry = self.service.robot(robot)?;
+        let entry = self.service.robot_at(robot, "robot")?;
         let (opts, frames) = convert::options_from_pb(options)?;
         let unit = convert::length_unit_to_pb(entry.robot.length_unit());
         let (t, fr) = self
             .service
             .fk_with_frames(&entry.robot, joints, &opts, frames)?;
+        entry.count_poses(Protocol::Grpc, 1);
         let frames = fr.iter().flatten().map(convert::pose_to_pb).collect();
         Ok((convert::pose_to_pb(&t), frames, unit))
     }
@@ -113,12 +127,18 @@ type FkStream = Pin<
 impl KinematicsService for GrpcService {
     async fn list_robots(
         &self,
-        _req: Request<pb::ListRobotsRequest>,
+        req: Request<pb::ListRobotsRequest>,
     ) -> Result<Response<pb::ListRobotsResponse>, Status> {
         let _permit = self.admit()?;
-        let robots = self
-            .service
-            .list()
+        let req = req.into_inner();
+        let size = u32::try_from(req.page_size).map_err(|_| {
+            Error::malformed_field(
+                "page_size",
+                "must not be negative (0 means the default, 100)",
+            )
+        })?;
+        let (page, next) = self.service.list_page(size, &req.page_token)?;
+        let robots = page
             .into_iter()
             .map(|s| pb::RobotSummary {
                 name: s.name,
@@ -128,7 +148,10 @@ impl KinematicsService for GrpcService {
                 source: convert::origin_to_pb(s.origin) as i32,
             })
             .collect();
-        Ok(Response::new(pb::ListRobotsResponse { robots }))
+        Ok(Response::new(pb::ListRobotsResponse {
+            robots,
+            next_page_token: next.unwrap_or_default(),
+        }))
     }
 
     async fn get_robot(
@@ -147,7 +170,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::RegisterRobotRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         let req = req.into_inner();
         let robot = req
@@ -172,7 +195,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::DeleteRobotRequest>,
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         self.service.delete(&req.get_ref().name).await?;
         Ok(Response::new(pb::DeleteRobotResponse {}))
@@ -200,8 +223,15 @@ impl KinematicsService for GrpcService {
         let _permit = self.admit()?;
         let req = req.into_inner();
         self.service.check_batch_size(req.configurations.len())?;
-        let entry = self.service.robot(&req.robot)?;
-        let (opts, _) = convert::options_from_pb(req.options.as_ref())?;
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let (opts, frames) = convert::options_from_pb(req.options.as_ref())?;
+        if frames {
+            return Err(Error::malformed_field(
+                "options.frames",
+                "batch FK returns tool poses only: ask ForwardKinematics or the stream for frames",
+            )
+            .into());
+        }
         let mut configs = Configurations {
             values: Vec::with_capacity(req.configurations.len() * entry.robot.dof()),
             lens: Vec::with_capacity(req.configurations.len()),
@@ -210,6 +240,7 @@ impl KinematicsService for GrpcService {
             configs.push(&c.joints);
         }
         let poses = self.service.fk_batch(&entry.robot, &configs, &opts)?;
+        entry.count_poses(Protocol::Grpc, poses.len() as u64);
         Ok(Response::new(pb::ForwardKinematicsBatchResponse {
             robot: req.robot,
             length_unit: convert::length_unit_to_pb(entry.robot.length_unit()) as i32,
@@ -231,6 +262,7 @@ impl KinematicsService for GrpcService {
         let shutdown = self.shutdown.clone();
         tokio::spawn(async move {
             let _permit = permit;
+            let _stream = StreamGuard::open(Protocol::Grpc);
             loop {
                 let next = tokio::select! {
                     _ = shutdown.cancelled() => {
@@ -292,6 +324,25 @@ impl KinematicsService for GrpcService {
         });
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
+
+    async fn get_closed_form(
+        &self,
+        req: Request<pb::GetClosedFormRequest>,
+    ) -> Result<Response<pb::GetClosedFormResponse>, Status> {
+        let _permit = self.admit()?;
+        let cf = self.service.closed_form(&req.get_ref().robot)?;
+        Ok(Response::new(convert::closed_form_to_pb(cf)))
+    }
+
+    async fn get_urdf(
+        &self,
+        req: Request<pb::GetUrdfRequest>,
+    ) -> Result<Response<pb::GetUrdfResponse>, Status> {
+        let _permit = self.admit()?;
+        let robot = req.into_inner().robot;
+        let urdf = self.service.urdf(&robot)?;
+        Ok(Response::new(pb::GetUrdfResponse { robot, urdf }))
+    }
 }
 
 /// The answer to a request whose handler panicked: INTERNAL (trailers-only),
@@ -317,6 +368,8 @@ pub async fn serve(
     health
         .set_service_status("", tonic_health::ServingStatus::Serving)
         .await;
+    // Every descriptor set we serve, on both reflection versions, each of
+    // which also lists the other (grpcurl and older clients use either).
     let descriptors = [
         pb::FILE_DESCRIPTOR_SET,
         tonic_health::pb::FILE_DESCRIPTOR_SET,
@@ -327,10 +380,15 @@ pub async fn serve(
         v1 = v1.register_encoded_file_descriptor_set(d);
         v1alpha = v1alpha.register_encoded_file_descriptor_set(d);
     }
+    v1 =
+        v1.register_encoded_file_descriptor_set(tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET);
+    v1alpha =
+        v1alpha.register_encoded_file_descriptor_set(tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET);
     let reflection_v1 = v1.build_v1().map_err(std::io::Error::other)?;
     let reflection_v1alpha = v1alpha.build_v1alpha().map_err(std::io::Error::other)?;
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
+    let access_log = settings.access_log;
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
         settings: Arc::new(settings),
@@ -349,7 +407,17 @@ pub async fn serve(
         })
     });
     let health_on_stop = health.clone();
+    let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(
+        access_log,
+        &[
+            pb::FILE_DESCRIPTOR_SET,
+            tonic_health::pb::FILE_DESCRIPTOR_SET,
+            tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET,
+            tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
+        ],
+    );
     tonic::transport::Server::builder()
+        .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,
         ))

@@ -17,6 +17,8 @@ pub fn code_of(e: &Error) -> Code {
         Error::AlreadyExists { .. } => Code::AlreadyExists,
         Error::ReadOnly { .. } => Code::FailedPrecondition,
         Error::Unauthenticated => Code::Unauthenticated,
+        Error::Forbidden { .. } => Code::PermissionDenied,
+        Error::Full { .. } => Code::ResourceExhausted,
         Error::TooLarge { .. } => Code::ResourceExhausted,
         Error::UnsupportedMediaType { .. } => Code::InvalidArgument,
         Error::Overloaded => Code::ResourceExhausted,

@@ -34,14 +34,30 @@ pub struct RobotSummaryDto {
 
 /// `GET /v1/robots`.
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin"}]}))]
 pub struct RobotList {
-    /// Every robot, sorted by name.
+    /// One page of robots, sorted by name.
     pub robots: Vec<RobotSummaryDto>,
+    /// Pass as `page_token` for the next page; absent on the last page.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub next_page_token: Option<String>,
+}
+
+/// Query of `GET /v1/robots` (AIP-158 pagination).
+#[derive(Clone, Debug, Deserialize, utoipa::IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct ListParams {
+    /// Most robots to return: absent or 0 means 100; above 1000 means 1000.
+    pub page_size: Option<u32>,
+    /// `next_page_token` of the previous page; absent for the first page.
+    pub page_token: Option<String>,
 }
 
 /// `POST /v1/robots/{name}/fk`.
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
+#[schema(example = json!({"joints": [0.5, 0.1], "angle_unit": "rad", "frames": false, "check_limits": true}))]
 pub struct FkRequest {
     /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
     pub joints: Vec<f64>,
@@ -66,6 +82,7 @@ impl FkRequest {
 /// `POST /v1/robots/{name}/fk/batch`.
 #[derive(Clone, Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
+#[schema(example = json!({"configurations": [[0.5, 0.1], [0.0, 0.0]], "angle_unit": "rad", "check_limits": true}))]
 pub struct FkBatchRequest {
     /// Joint configurations, each like `joints` of a single request.
     #[schema(value_type = Vec<Vec<f64>>)]
@@ -138,6 +155,7 @@ impl JacobianBatchRequest {
 
 /// `POST /v1/robots/{name}/fk/batch` response.
 #[derive(Debug, Serialize, ToSchema)]
+#[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "poses": [{"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}]}))]
 pub struct FkBatchResponse<'a> {
     /// Robot name.
     pub robot: &'a str,
@@ -213,6 +231,7 @@ impl<'de> Deserialize<'de> for Configurations {
 /// `"ik": {...}` (an IK request body, and no `joints`) it is an IK request.
 #[derive(Clone, Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
+#[schema(example = json!({"id": 1, "joints": [0.5, 0.1], "angle_unit": "rad"}))]
 pub struct WsRequest {
     /// Any JSON value; echoed in the reply.
     #[serde(default)]
@@ -257,10 +276,14 @@ pub struct WsIdOnly {
 
 /// A WebSocket reply.
 #[derive(Debug, Serialize, ToSchema)]
+#[schema(example = json!({"id": 1, "length_unit": "m", "pose": {"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}}))]
 pub struct WsReply<'a> {
     /// The request's `id`.
     #[schema(value_type = Object)]
     pub id: &'a serde_json::Value,
+    /// Length unit of every position in this reply, on success.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub length_unit: Option<LengthUnit>,
     /// The tool pose, on success (for IK: the pose at the joints found).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pose: Option<Pose>,

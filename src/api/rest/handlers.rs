@@ -6,6 +6,7 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
+use super::dto::ListParams;
 use super::dto::{
     FkBatchRequest, FkBatchResponse, FkRequest, PosesSer, RobotList, RobotSummaryDto,
 };
@@ -15,6 +16,9 @@ use crate::api::pose::{FkOutput, Pose};
 use crate::error::Error;
 use crate::model::RobotSpec;
 use crate::registry::{Origin, PutMode};
+use crate::telemetry::Protocol;
+use axum::extract::Query;
+use axum::extract::rejection::QueryRejection;
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -46,13 +50,23 @@ pub async fn readyz(State(state): State<AppState>) -> ApiResult<&'static str> {
     }
 }
 
-/// Every robot, sorted by name.
-#[utoipa::path(get, path = "/v1/robots", tag = "robots", responses((status = 200, body = RobotList),
+/// The robots, sorted by name, a page at a time (AIP-158: `page_size`,
+/// `page_token`; follow `next_page_token` until it is absent).
+#[utoipa::path(get, path = "/v1/robots", tag = "robots",
+    params(ListParams),
+    responses((status = 200, body = RobotList),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
-pub async fn list_robots(State(state): State<AppState>) -> Json<RobotList> {
-    let robots = state
-        .service
-        .list()
+pub async fn list_robots(
+    State(state): State<AppState>,
+    query: Result<Query<ListParams>, QueryRejection>,
+) -> ApiResult<Json<RobotList>> {
+    let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
+    let (page, next_page_token) = state.service.list_page(
+        params.page_size.unwrap_or(0),
+        params.page_token.as_deref().unwrap_or(""),
+    )?;
+    let robots = page
         .into_iter()
         .map(|s| RobotSummaryDto {
             name: s.name,
@@ -62,7 +76,10 @@ pub async fn list_robots(State(state): State<AppState>) -> Json<RobotList> {
             source: origin_str(s.origin).to_string(),
         })
         .collect();
-    Json(RobotList { robots })
+    Ok(Json(RobotList {
+        robots,
+        next_page_token,
+    }))
 }
 
 /// One robot's model, in the schema it was registered with.
@@ -99,6 +116,7 @@ fn created(name: &str, created: bool, spec: &RobotSpec) -> Response {
     responses((status = 201, body = RobotSpec, headers(("Location" = String))),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
@@ -122,6 +140,7 @@ pub async fn create_robot(
     responses((status = 200, body = RobotSpec), (status = 201, body = RobotSpec),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
@@ -155,6 +174,7 @@ pub async fn put_robot(
     responses((status = 204, description = "Deleted"),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
+        (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
@@ -188,6 +208,7 @@ pub async fn fk(
     let (pose, frames) = state
         .service
         .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
+    entry.count_poses(Protocol::Rest, 1);
     let frames = frames.map(|f| f.iter().map(Pose::from).collect());
     Ok(Json(FkOutput {
         robot: robot.name().to_string(),
@@ -217,6 +238,7 @@ pub async fn fk_batch(
     let poses = state
         .service
         .fk_batch(robot, &req.configurations, &req.options())?;
+    entry.count_poses(Protocol::Rest, poses.len() as u64);
     let body = FkBatchResponse {
         robot: robot.name(),
         length_unit: robot.length_unit(),

@@ -1,8 +1,10 @@
 //! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
 
 mod dto;
+mod export;
 mod extract;
 mod handlers;
+mod openapi;
 mod playground;
 pub mod problem;
 mod velocity;
@@ -33,7 +35,10 @@ pub use dto::{
     FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
     WsRequest,
 };
+pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
+
+use openapi::Complete;
 
 use crate::error::Error;
 use crate::service::Service;
@@ -70,6 +75,8 @@ pub struct RestSettings {
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
     pub cors_origins: Vec<String>,
+    /// One access-log line per request (target `kinserve::access`).
+    pub access_log: bool,
 }
 
 /// The parts of [`AppState`].
@@ -106,16 +113,21 @@ impl Modify for SecurityAddon {
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
         handlers::fk, handlers::fk_batch, velocity::jacobian, velocity::jacobian_batch,
-        velocity::ik, velocity::ik_batch, ws::stream, metrics_text
+        velocity::ik, velocity::ik_batch, ws::stream, metrics_text,
+        export::closed_form, export::urdf
     ),
     components(schemas(WsRequest, dto::WsReply, dto::WsJacobian, dto::WsIk)),
-    modifiers(&SecurityAddon)
+    modifiers(&SecurityAddon, &Complete)
 )]
 pub struct ApiDoc;
 
 /// Prometheus metrics in text exposition format.
-#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text", content_type = "text/plain")))]
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200,
+    description = "Prometheus text exposition format: every family has # HELP and # TYPE lines",
+    content_type = "text/plain",
+    example = "# HELP kinserve_robots Robots in the registry, by source.\n# TYPE kinserve_robots gauge\nkinserve_robots{source=\"builtin\"} 19\n")))]
 async fn metrics_text(State(state): State<AppState>) -> Response {
+    crate::telemetry::update_process_metrics();
     (
         [(
             header::CONTENT_TYPE,
@@ -152,16 +164,65 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
         *req.method(),
         Method::POST | Method::PUT | Method::DELETE | Method::PATCH
     );
-    if mutating
-        && let Err(e) = state.service.authorize_header(
-            req.headers()
-                .get(header::AUTHORIZATION)
-                .and_then(|v| v.to_str().ok()),
-        )
+    if !mutating {
+        return next.run(req).await;
+    }
+    let unread = has_body(req.headers());
+    if let Err(e) = check_origin(req.headers(), &state.settings.cors_origins, true)
+        .and_then(|()| authorization(req.headers()))
+        .and_then(|token| state.service.authorize_header(token))
     {
-        return refuse_unread(has_body(req.headers()), ApiError(e).into_response());
+        return refuse_unread(unread, ApiError(e).into_response());
     }
     next.run(req).await
+}
+
+/// The one `Authorization` header of a request (two or more are malformed:
+/// which one counts would be a guess).
+fn authorization(headers: &header::HeaderMap) -> Result<Option<&str>, Error> {
+    let mut all = headers.get_all(header::AUTHORIZATION).iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one Authorization header, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
+}
+
+/// Secure by default: a browser request from another origin (its `Origin`
+/// header is neither this server nor one of `--cors-origin`) may not write
+/// to the registry (`write`), and, once `--cors-origin` is set, may not open
+/// a WebSocket either. Requests without `Origin` (non-browser clients) pass.
+pub(crate) fn check_origin(
+    headers: &header::HeaderMap,
+    allowed: &[String],
+    write: bool,
+) -> Result<(), Error> {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else {
+        return Ok(());
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let same = origin
+        .split_once("://")
+        .is_some_and(|(_, rest)| !host.is_empty() && rest == host);
+    if same || allowed.iter().any(|a| a == origin) || (!write && allowed.is_empty()) {
+        return Ok(());
+    }
+    let what = if write {
+        "registry writes"
+    } else {
+        "WebSocket streams"
+    };
+    Err(Error::Forbidden {
+        detail: format!(
+            "{what} from the web origin '{origin}' are refused: start the server with --cors-origin {origin} to allow it"
+        ),
+    })
 }
 
 /// Admission control and request timeout: past the concurrency limit a request
@@ -193,6 +254,8 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/jacobian/batch",
         "/v1/robots/{name}/ik",
         "/v1/robots/{name}/ik/batch",
+        "/v1/robots/{name}/closed-form",
+        "/v1/robots/{name}/urdf",
         "/v1/robots/{name}",
         "/v1/robots",
         "/healthz",
@@ -249,11 +312,30 @@ fn status_label(code: u16) -> SharedString {
 }
 
 /// Counts requests by route and status and records their latency.
-async fn record_metrics(req: Request, next: Next) -> Response {
+async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next) -> Response {
     let start = Instant::now();
     let route = route_label(req.extensions().get::<MatchedPath>());
     let method = method_label(req.method());
+    let request_id = access_log.then(|| {
+        req.headers()
+            .get("x-request-id")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_string()
+    });
     let resp = next.run(req).await;
+    if let Some(request_id) = request_id {
+        tracing::info!(
+            target: "kinserve::access",
+            protocol = "http",
+            method = %method,
+            route = %route,
+            status = resp.status().as_u16(),
+            duration_ms = start.elapsed().as_secs_f64() * 1e3,
+            request_id = %request_id,
+            "request"
+        );
+    }
     let status = status_label(resp.status().as_u16());
     metrics::counter!("kinserve_http_requests_total", "method" => method.clone(), "route" => route.clone(), "status" => status)
         .increment(1);
@@ -286,7 +368,11 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::RETRY_AFTER,
         ]);
     if origins.is_empty() {
-        layer.allow_origin(Any)
+        // Any web page may read and compute FK; registry writes (PUT, DELETE,
+        // and POST /v1/robots, refused by `check_origin`) need --cors-origin.
+        layer
+            .allow_origin(Any)
+            .allow_methods([Method::GET, Method::POST, Method::OPTIONS])
     } else {
         let origins: Vec<HeaderValue> = origins
             .iter()
@@ -338,8 +424,12 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/ik/batch",
             axum::routing::post(velocity::ik_batch),
         );
+    let export = Router::new()
+        .route("/v1/robots/{name}/closed-form", get(export::closed_form))
+        .route("/v1/robots/{name}/urdf", get(export::urdf));
     let api = admin
         .merge(fk)
+        .merge(export)
         .merge(extra)
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route("/healthz", get(handlers::healthz))
@@ -348,11 +438,16 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .route("/", get(playground::index))
         .route("/playground/{file}", get(playground::file));
     let cors = cors(&state.settings.cors_origins);
-    api.merge(SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
+    let access_log = state.settings.access_log;
+    // validatorUrl "none": Swagger UI must not send the spec's URL to the public validator.
+    let swagger = SwaggerUi::new("/docs")
+        .url("/openapi.json", ApiDoc::openapi())
+        .config(utoipa_swagger_ui::Config::new(["/openapi.json"]).validator_url("none"));
+    api.merge(swagger)
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state)
-        .layer(middleware::from_fn(record_metrics))
+        .layer(middleware::from_fn_with_state(access_log, record_metrics))
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(
             TraceLayer::new_for_http().make_span_with(|req: &Request| {

@@ -36,6 +36,11 @@ const FILES: &[(&str, &str, &str)] = &[
         include_str!("playground/view3d.js"),
     ),
     (
+        "closedform.js",
+        "text/javascript; charset=utf-8",
+        include_str!("playground/closedform.js"),
+    ),
+    (
         "jsonlines.js",
         "text/javascript; charset=utf-8",
         include_str!("playground/jsonlines.js"),

@@ -68,6 +68,12 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             "unauthenticated",
             "Authentication required",
         ),
+        Error::Forbidden { .. } => (StatusCode::FORBIDDEN, "forbidden", "Forbidden"),
+        Error::Full { .. } => (
+            StatusCode::INSUFFICIENT_STORAGE,
+            "registry-full",
+            "Registry full",
+        ),
         Error::TooLarge { .. } => (
             StatusCode::PAYLOAD_TOO_LARGE,
             "too-large",

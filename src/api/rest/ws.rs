@@ -14,6 +14,7 @@ use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::Pose;
 use crate::error::Error;
+use crate::telemetry::{Protocol, StreamGuard};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
@@ -31,13 +32,16 @@ const GOING_AWAY: u16 = 1001;
     responses((status = 101, description = "WebSocket upgrade; messages are WsRequest (FK, with the Jacobian on request, or IK), replies WsReply"),
         (status = 400, description = "Bad path or not a WebSocket handshake", body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 403, description = "The page's origin is not among --cors-origin (only when that is set)", body = Problem, content_type = "application/problem+json"),
         (status = 426, description = "The connection cannot be upgraded", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    headers: axum::http::HeaderMap,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
+    super::check_origin(&headers, &state.settings.cors_origins, false)?;
     state.service.robot(&name)?;
     // A request that is not a valid WebSocket handshake gets a problem, not axum's plain text.
     let ws = match ws {
@@ -75,6 +79,7 @@ async fn close(socket: &mut WebSocket, reason: &'static str) {
 }
 
 async fn run(mut socket: WebSocket, state: AppState, name: String) {
+    let _stream = StreamGuard::open(Protocol::WebSocket);
     let shutdown = state.shutdown.clone();
     let idle = state.settings.stream_idle_timeout;
     loop {
@@ -129,8 +134,10 @@ async fn run(mut socket: WebSocket, state: AppState, name: String) {
 }
 
 fn error_reply(id: &serde_json::Value, e: &Error) -> String {
+    crate::telemetry::ws_message(false);
     let reply = WsReply {
         id,
+        length_unit: None,
         pose: None,
         frames: None,
         jacobian: None,
@@ -155,49 +162,62 @@ async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         Ok(e) => e,
         Err(e) => return error_reply(&req.id, &e),
     };
-    if let Some(ik) = req.ik {
+    if let Some(ik) = req.ik.clone() {
         if req.joints.is_some() {
             let e = Error::invalid_field("joints", "give joints (FK) or ik, not both");
             return error_reply(&req.id, &e);
         }
-        return match state.service.ik_blocking(entry, ik).await {
-            Ok(a) => {
-                let reply = WsReply {
-                    id: &req.id,
-                    pose: Some(Pose::from(&a.pose)),
-                    frames: None,
-                    jacobian: None,
-                    ik: Some(WsIk {
-                        joints: a.joints,
-                        converged: a.converged,
-                        position_error: a.position_error,
-                        orientation_error: a.orientation_error,
-                        iterations: a.iterations,
-                    }),
-                    error: None,
-                };
-                serde_json::to_string(&reply).unwrap_or_default()
-            }
-            Err(e) => error_reply(&req.id, &e),
-        };
+        return ik_reply(state, entry, &req, ik).await;
     }
     let Some(joints) = req.joints.as_deref() else {
-        return error_reply(
-            &req.id,
-            &Error::invalid_field("joints", "is required unless ik is given"),
-        );
+        // As serde reports a missing field (400), naming the alternative.
+        let e = Error::malformed_field("joints", "missing field `joints` (or give `ik`)");
+        return error_reply(&req.id, &e);
     };
-    fk_reply(state, &entry.robot, &req, joints)
+    fk_reply(state, &entry, &req, joints)
+}
+
+/// The reply to an IK message.
+async fn ik_reply(
+    state: &AppState,
+    entry: std::sync::Arc<crate::registry::Entry>,
+    req: &WsRequest,
+    ik: crate::model::IkSpec,
+) -> String {
+    let length_unit = entry.robot.length_unit();
+    match state.service.ik_blocking(entry, ik).await {
+        Ok(a) => {
+            crate::telemetry::ws_message(true);
+            let reply = WsReply {
+                id: &req.id,
+                length_unit: Some(length_unit),
+                pose: Some(Pose::from(&a.pose)),
+                frames: None,
+                jacobian: None,
+                ik: Some(WsIk {
+                    joints: a.joints,
+                    converged: a.converged,
+                    position_error: a.position_error,
+                    orientation_error: a.orientation_error,
+                    iterations: a.iterations,
+                }),
+                error: None,
+            };
+            serde_json::to_string(&reply).unwrap_or_default()
+        }
+        Err(e) => error_reply(&req.id, &e),
+    }
 }
 
 /// The reply to an FK message (with the Jacobian when asked for; its pose is
 /// then the Jacobian's, as `POST …/jacobian` answers it).
 fn fk_reply(
     state: &AppState,
-    robot: &crate::model::Robot,
+    entry: &crate::registry::Entry,
     req: &WsRequest,
     joints: &[f64],
 ) -> String {
+    let robot = &entry.robot;
     let opts = req.options();
     let (pose, frames) = match state
         .service
@@ -224,8 +244,11 @@ fn fk_reply(
     } else {
         (Pose::from(&pose), None)
     };
+    entry.count_poses(Protocol::WebSocket, 1);
+    crate::telemetry::ws_message(true);
     let reply = WsReply {
         id: &req.id,
+        length_unit: Some(robot.length_unit()),
         pose: Some(pose),
         frames: frames.as_deref().map(PosesSer),
         jacobian,

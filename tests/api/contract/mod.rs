@@ -19,3 +19,4 @@
 
 mod poses;
 mod registry;
+mod vocabulary;

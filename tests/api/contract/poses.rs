@@ -351,7 +351,7 @@ async fn batches_agree_with_single_requests_over_rest_and_grpc() {
                     })
                     .collect(),
                 options: cases[0].options().map(|mut o| {
-                    o.include_frames = false;
+                    o.frames = Some(false);
                     o
                 }),
             })

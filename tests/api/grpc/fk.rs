@@ -58,7 +58,7 @@ async fn forward_kinematics_frames_and_limit_options() {
             "panda",
             &q,
             Some(pb::FkOptions {
-                include_frames: true,
+                frames: Some(true),
                 ..Default::default()
             }),
         ),
@@ -92,7 +92,7 @@ async fn forward_kinematics_frames_and_limit_options() {
             "panda",
             &out,
             Some(pb::FkOptions {
-                skip_limit_check: true,
+                check_limits: Some(false),
                 ..Default::default()
             }),
         ),
@@ -152,7 +152,7 @@ async fn forward_kinematics_bad_inputs() {
             "puma560",
             &[f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0],
             Some(pb::FkOptions {
-                skip_limit_check: true,
+                check_limits: Some(false),
                 ..Default::default()
             }),
         ),

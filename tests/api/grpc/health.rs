@@ -198,6 +198,8 @@ macro_rules! reflection_suite {
                     "ForwardKinematics",
                     "ForwardKinematicsBatch",
                     "StreamForwardKinematics",
+                    "GetClosedForm",
+                    "GetUrdf",
                 ]
                 .into();
                 assert_eq!(methods, want);

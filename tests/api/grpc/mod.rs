@@ -8,6 +8,7 @@
 //! Split by area; the shared helpers are in `crate::helpers`.
 
 mod fk;
+mod grpcurl;
 mod health;
 mod registry;
 mod stream;

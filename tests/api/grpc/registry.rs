@@ -15,7 +15,7 @@ async fn list_robots_is_sorted_and_describes_builtins() {
     let app = spawn_app().await;
     let mut c = app.grpc_client().await;
     let robots = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner()
@@ -66,7 +66,7 @@ async fn get_robot_returns_the_model_and_unknown_is_not_found() {
     assert_eq!(robot.angle_unit, pb::AngleUnit::Deg as i32);
     assert_eq!(robot.links.len(), 6);
     assert_eq!(robot.links[2].joint, pb::JointType::Prismatic as i32);
-    assert_eq!(robot.links[2].theta, -90.0);
+    assert_eq!(robot.links[2].theta, Some(-90.0));
     assert_eq!(
         robot.links[2].limits,
         Some(pb::Limits {
@@ -113,7 +113,7 @@ async fn register_replace_get_fk_and_delete_a_robot() {
 
     // With replace: replaced (created = false), and the new table is used.
     let mut longer = planar_pb("arm");
-    longer.links[0].a = 1.0;
+    longer.links[0].a = Some(1.0);
     let r = c
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(longer),
@@ -130,10 +130,10 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .unwrap()
         .into_inner();
     assert_eq!(got.source, pb::RobotSource::Registered as i32);
-    assert_eq!(got.robot.unwrap().links[0].a, 1.0);
+    assert_eq!(got.robot.unwrap().links[0].a, Some(1.0));
 
     let list = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner();
@@ -265,7 +265,7 @@ async fn invalid_models_are_invalid_argument_with_field_paths() {
     assert_eq!(status_fields(&err), ["name"]);
 
     let mut m = planar_pb("bad");
-    m.links[0].alpha = f64::NAN;
+    m.links[0].alpha = Some(f64::NAN);
     let err = register(Some(m)).await;
     assert_eq!(err.code(), Code::InvalidArgument);
     assert_eq!(status_fields(&err), ["links[0].alpha"]);
@@ -278,7 +278,7 @@ async fn invalid_models_are_invalid_argument_with_field_paths() {
 
     // Nothing was stored.
     let list = c
-        .list_robots(pb::ListRobotsRequest {})
+        .list_robots(pb::ListRobotsRequest::default())
         .await
         .unwrap()
         .into_inner();
@@ -323,7 +323,9 @@ async fn register_and_delete_need_the_bearer_token_when_one_is_set() {
     })
     .await
     .unwrap();
-    c.list_robots(pb::ListRobotsRequest {}).await.unwrap();
+    c.list_robots(pb::ListRobotsRequest::default())
+        .await
+        .unwrap();
     fk(&mut c, fk_request("guarded", &[0.0, 0.0], None))
         .await
         .unwrap();

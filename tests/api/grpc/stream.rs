@@ -49,8 +49,9 @@ async fn stream_answers_each_request_in_order_and_survives_invalid_messages() {
             &[10.0, 20.0, 30.0, 40.0, 50.0],
             Some(pb::FkOptions {
                 angle_unit: pb::AngleUnit::Deg as i32,
-                include_frames: true,
-                skip_limit_check: false,
+                frames: Some(true),
+                check_limits: Some(true),
+                ..Default::default()
             }),
         ),
         stream_request(6, "puma560", &ok_puma, None),
@@ -230,7 +231,7 @@ async fn a_stream_outlives_the_request_timeout() {
 /// bound, not a timing assertion). Every refusal must be RESOURCE_EXHAUSTED.
 async fn eventually_admitted(c: &mut KinematicsServiceClient<Channel>) -> bool {
     for _ in 0..1000 {
-        match c.list_robots(pb::ListRobotsRequest {}).await {
+        match c.list_robots(pb::ListRobotsRequest::default()).await {
             Ok(_) => return true,
             Err(e) => assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}"),
         }
@@ -265,7 +266,10 @@ async fn over_the_concurrency_limit_calls_are_resource_exhausted_and_a_finished_
         .unwrap();
     assert_eq!(rx.message().await.unwrap().unwrap().id, 1);
 
-    let err = c.list_robots(pb::ListRobotsRequest {}).await.unwrap_err();
+    let err = c
+        .list_robots(pb::ListRobotsRequest::default())
+        .await
+        .unwrap_err();
     assert_eq!(err.code(), Code::ResourceExhausted, "{err:?}");
     let err = c
         .forward_kinematics(fk_request("puma560", &[0.0; 6], None))
@@ -320,7 +324,7 @@ async fn a_client_that_vanishes_mid_stream_releases_the_server_side_work() {
         .unwrap();
     assert_eq!(rx.message().await.unwrap().unwrap().id, 1);
     assert_eq!(
-        c.list_robots(pb::ListRobotsRequest {})
+        c.list_robots(pb::ListRobotsRequest::default())
             .await
             .unwrap_err()
             .code(),

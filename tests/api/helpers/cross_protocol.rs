@@ -126,7 +126,7 @@ impl PoseOut {
 
     pub(crate) fn from_pb(p: &pb::Pose) -> PoseOut {
         let pos = p.position.as_ref().expect("position");
-        let q = p.orientation.as_ref().expect("orientation");
+        let q = p.quaternion.as_ref().expect("quaternion");
         let r = p.rpy.as_ref().expect("rpy");
         PoseOut {
             matrix: p.matrix.clone(),
@@ -239,8 +239,9 @@ impl Case {
                 Unit::Rad => pb::AngleUnit::Rad,
                 Unit::Deg => pb::AngleUnit::Deg,
             } as i32,
-            include_frames: self.frames,
-            skip_limit_check: !self.check_limits,
+            frames: Some(self.frames),
+            check_limits: Some(self.check_limits),
+            ..Default::default()
         })
     }
 

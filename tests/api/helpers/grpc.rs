@@ -72,16 +72,22 @@ pub(crate) fn planar_pb(name: &str) -> pb::Robot {
         links: vec![
             pb::Link {
                 joint: pb::JointType::Revolute as i32,
-                a: 0.5,
+                a: Some(0.5),
                 limits: Some(pb::Limits {
                     lo: -170.0,
                     hi: 170.0,
                 }),
+                alpha: Some(0.0),
+                d: Some(0.0),
+                theta: Some(0.0),
                 ..Default::default()
             },
             pb::Link {
                 joint: pb::JointType::Revolute as i32,
-                a: 0.3,
+                a: Some(0.3),
+                alpha: Some(0.0),
+                d: Some(0.0),
+                theta: Some(0.0),
                 ..Default::default()
             },
         ],
@@ -128,33 +134,40 @@ pub(crate) fn rich_pb(name: &str) -> pb::Robot {
             pb::Link {
                 name: Some("waist".into()),
                 joint: pb::JointType::Revolute as i32,
-                d: 200.0,
-                alpha: -90.0,
+                d: Some(200.0),
+                alpha: Some(-90.0),
                 limits: Some(pb::Limits {
                     lo: -180.0,
                     hi: 180.0,
                 }),
-                ..Default::default()
+                a: Some(0.0),
+                theta: Some(0.0),
             },
             pb::Link {
                 name: Some("slide".into()),
                 joint: pb::JointType::Prismatic as i32,
-                theta: -90.0,
-                a: 20.0,
+                theta: Some(-90.0),
+                a: Some(20.0),
                 limits: Some(pb::Limits { lo: 0.0, hi: 400.0 }),
-                ..Default::default()
+                alpha: Some(0.0),
+                d: Some(0.0),
             },
             pb::Link {
                 name: Some("wrist".into()),
                 joint: pb::JointType::Revolute as i32,
-                a: 100.0,
-                alpha: 90.0,
+                a: Some(100.0),
+                alpha: Some(90.0),
+                d: Some(0.0),
+                theta: Some(0.0),
                 ..Default::default()
             },
             pb::Link {
                 name: Some("flange".into()),
                 joint: pb::JointType::Fixed as i32,
-                d: 30.0,
+                d: Some(30.0),
+                a: Some(0.0),
+                alpha: Some(0.0),
+                theta: Some(0.0),
                 ..Default::default()
             },
         ],
@@ -201,7 +214,7 @@ pub(crate) fn assert_pose_eq(
     for (a, b) in [p.x, p.y, p.z].iter().zip(wp) {
         assert_close(*a, b, tol, &format!("{what}: position"));
     }
-    let q = got.orientation.as_ref().expect("orientation");
+    let q = got.quaternion.as_ref().expect("quaternion");
     let wq = want.quaternion();
     for (a, b) in [q.w, q.x, q.y, q.z].iter().zip(wq) {
         assert_close(*a, b, tol, &format!("{what}: quaternion"));
@@ -223,7 +236,7 @@ pub(crate) fn assert_same_pose(a: &pb::Pose, b: &pb::Pose, what: &str) {
         [v.x, v.y, v.z]
     };
     let q = |x: &pb::Pose| {
-        let v = x.orientation.expect("orientation");
+        let v = x.quaternion.expect("quaternion");
         [v.w, v.x, v.y, v.z]
     };
     let r = |x: &pb::Pose| {

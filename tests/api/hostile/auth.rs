@@ -126,7 +126,7 @@ async fn every_mutation_needs_the_token_and_reads_leak_nothing() {
         .await
         .unwrap();
     let reply = next_text(&mut ws).await.unwrap();
-    assert_eq!(reply["error"]["status"], 422, "{reply}");
+    assert_eq!(reply["error"]["status"], 400, "{reply}");
     assert_eq!(app.get("/v1/robots/guarded").await.status(), 200);
     // No response carries the token.
     for path in [
@@ -179,6 +179,7 @@ async fn every_mutation_needs_the_token_and_reads_leak_nothing() {
             [
                 "grpc.health.v1.Health",
                 "grpc.reflection.v1.ServerReflection",
+                "grpc.reflection.v1alpha.ServerReflection",
                 "kinematics.v1.KinematicsService",
             ]
         );

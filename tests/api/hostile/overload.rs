@@ -188,10 +188,7 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
 
     let limits = ServiceLimits::default();
     let registry = Registry::new(Box::new(MemoryStore));
-    registry.load_builtins(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots"),
-        &limits.model,
-    );
+    registry.load_builtins(None, &limits.model);
     let service = Arc::new(Service::new(registry, limits, None));
     service.set_ready(true);
     let config = kinserve::config::ServeConfig::for_tests(std::env::temp_dir());

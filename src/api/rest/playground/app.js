@@ -3,6 +3,7 @@
 
 import { ApiError, FkStream, fkBatch, getRobot, listRobots, putRobot } from './api.js';
 import { jsonPathLines, lineForField } from './jsonlines.js';
+import { showClosedForm } from './closedform.js';
 import { View3D, formatLen } from './view3d.js';
 
 const DEFAULT_ROBOT = 'puma560';
@@ -236,6 +237,7 @@ async function selectRobot(name) {
 
   renderSummary(model);
   renderDhTable(model);
+  showClosedForm(name, () => gen === state.gen);
   renderSliders();
   clearPose(model);
   prefillEditor(model);
