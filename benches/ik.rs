@@ -118,6 +118,7 @@ fn ik_stats() {
         "ur10e",
         "ur20",
         "panda",
+        "kinova_gen3",
     ];
     let opts = IkOptions::default();
     for name in arms {
