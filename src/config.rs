@@ -33,6 +33,13 @@ pub enum Command {
     },
     /// Compute FK once and print it as JSON (the REST API's `fk` response).
     Fk(FkArgs),
+    /// Compute the geometric Jacobian once and print it as JSON (the REST
+    /// API's `jacobian` response).
+    Jacobian(JacobianArgs),
+    /// Solve inverse kinematics once and print the answer as JSON (the REST
+    /// API's `ik` response); exits 1 (printing the best attempt) if the
+    /// target is not reached within the tolerance.
+    Ik(IkArgs),
     /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
     /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
     ClosedForm(ClosedFormArgs),
@@ -86,6 +93,80 @@ pub struct FkArgs {
     /// A directory of robot files (JSON) that add to or override the built-in robots.
     #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
     pub robots_dir: Option<PathBuf>,
+}
+
+/// Arguments of `kinserve jacobian`.
+#[derive(Debug, Args)]
+pub struct JacobianArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Joint values, comma separated: rad (or deg with --deg) for revolute, model length unit for prismatic.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub joints: Vec<f64>,
+    /// Revolute joint values are in degrees (the Jacobian's columns stay per rad).
+    #[arg(long)]
+    pub deg: bool,
+    /// Do not check joint limits.
+    #[arg(long)]
+    pub no_limits: bool,
+    /// Frame of the Jacobian's rows.
+    #[arg(long, value_enum, default_value_t = FrameArg::Base)]
+    pub frame: FrameArg,
+}
+
+/// Frame of a Jacobian's rows on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FrameArg {
+    /// The world frame FK poses are given in.
+    Base,
+    /// The tool frame.
+    Tool,
+}
+
+/// Arguments of `kinserve ik`: a target as `--matrix` or `--position`
+/// (with `--quaternion` unless `--position-only`).
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("target").required(true).args(["matrix", "position"])))]
+pub struct IkArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Target as a homogeneous 4×4 matrix: 16 values, row-major, comma separated.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub matrix: Option<Vec<f64>>,
+    /// Target position x,y,z in the robot's length unit.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub position: Option<Vec<f64>>,
+    /// Target orientation as a quaternion w,x,y,z.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub quaternion: Option<Vec<f64>>,
+    /// Start configuration, comma separated, in the answer's angle unit.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub seed: Option<Vec<f64>>,
+    /// Seed and answer in degrees.
+    #[arg(long)]
+    pub deg: bool,
+    /// Match the position only.
+    #[arg(long)]
+    pub position_only: bool,
+    /// Tolerance: length unit (position) and rad (orientation); default 1e-9.
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Iterations per attempt (default 100).
+    #[arg(long)]
+    pub max_iterations: Option<u32>,
+    /// Restarts after a stalled attempt (default 100).
+    #[arg(long)]
+    pub restarts: Option<u32>,
+    /// Give up after this long, answering the best attempt.
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    pub time_limit: Duration,
 }
 
 pub use crate::telemetry::LogFormat;
@@ -242,6 +323,10 @@ pub struct ServeConfig {
     /// How long shutdown waits for in-flight requests before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
+    /// Longest time one IK solve may take; past it the best attempt is
+    /// answered (not converged). An IK batch may take half the request timeout.
+    #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_duration)]
+    pub ik_time_limit: Duration,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -266,6 +351,7 @@ impl std::fmt::Debug for ServeConfig {
             header_timeout,
             stream_idle_timeout,
             shutdown_timeout,
+            ik_time_limit,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -287,6 +373,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("header_timeout", header_timeout)
             .field("stream_idle_timeout", stream_idle_timeout)
             .field("shutdown_timeout", shutdown_timeout)
+            .field("ik_time_limit", ik_time_limit)
             .finish()
     }
 }
@@ -328,6 +415,7 @@ impl ServeConfig {
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
             shutdown_timeout: Duration::from_secs(10),
+            ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
     }
 
@@ -361,6 +449,8 @@ impl ServeConfig {
                 max_links: self.max_links,
             },
             max_batch: self.max_batch,
+            ik_time_limit: self.ik_time_limit,
+            ik_batch_time_limit: self.request_timeout / 2,
         }
     }
 }

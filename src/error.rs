@@ -3,7 +3,7 @@
 //! (`api::grpc::status`), each in one exhaustive `match`.
 
 pub use kinserve_model::FieldViolation;
-use kinserve_model::{ModelError, summary};
+use kinserve_model::{IkAnswer, ModelError, summary};
 
 /// Everything that can go wrong in kinserve, by what the client should do about it.
 #[derive(Debug, thiserror::Error)]
@@ -99,6 +99,17 @@ pub enum Error {
         /// What failed (no secrets, no absolute paths of the host beyond the data dir).
         detail: String,
     },
+    /// Inverse kinematics found no configuration within the tolerance: the
+    /// target is out of reach, out of the joint limits, or the time cap cut
+    /// the solve short (HTTP 422 `ik-not-converged` with the best attempt;
+    /// gRPC FAILED_PRECONDITION with the best attempt in the details).
+    #[error("inverse kinematics did not converge: {detail}")]
+    IkNotConverged {
+        /// The best attempt's errors, in words.
+        detail: String,
+        /// The best attempt (joints in the request's angle unit, within limits).
+        best: Box<IkAnswer>,
+    },
     /// A bug: a panic caught in a handler (HTTP 500, gRPC INTERNAL).
     #[error("internal error: {detail}")]
     Internal {
@@ -147,6 +158,24 @@ impl Error {
                 }
             }
             other => other,
+        }
+    }
+}
+
+impl Error {
+    /// An [`Error::IkNotConverged`] carrying `best`; `length_unit` names the
+    /// unit of its position error.
+    pub fn ik_not_converged(best: IkAnswer, length_unit: &str) -> Self {
+        let orientation = best
+            .orientation_error
+            .map(|e| format!(", orientation error {e:.3e} rad"))
+            .unwrap_or_default();
+        Error::IkNotConverged {
+            detail: format!(
+                "best attempt has position error {:.3e} {length_unit}{orientation} after {} iterations",
+                best.position_error, best.iterations
+            ),
+            best: Box::new(best),
         }
     }
 }

@@ -7,6 +7,7 @@ mod errors;
 mod grpc;
 mod helpers;
 mod hostile;
+mod ik;
 mod logs;
 mod metrics;
 mod openapi;

@@ -13,6 +13,11 @@
 //!   message, parsed as the server parses them and evaluated against a few
 //!   built-in robots, either fail with a client error (4xx) or give finite,
 //!   rigid poses that serialise to JSON numbers (never `null`).
+//! * [`check_ik_request`] (in `fuzz_ik`): the REST IK body, the IK batch body
+//!   and the WebSocket IK message, validated and solved (under a short time
+//!   cap) for a few built-in robots, either fail with a client error or give
+//!   joints within the limits whose FK is the reported pose, honest errors,
+//!   and `converged` exactly when those errors are within the tolerance.
 //!
 
 use std::sync::OnceLock;
@@ -28,6 +33,7 @@ use kinserve_model::{
     RIGID_TOLERANCE, Robot, parse_json,
 };
 
+pub use crate::fuzz_ik::check_ik_request;
 use crate::reference::forward_reference;
 
 /// Relative tolerance between the fast (polynomial, SIMD) FK and the `std`
@@ -187,8 +193,11 @@ pub fn check_fk_request(bytes: &[u8]) {
                 angle_unit: req.angle_unit,
                 check_limits: req.check_limits,
             };
-            for robot in robots() {
-                evaluate_one(service, robot, &req.joints, &opts, req.frames);
+            // An IK message is the IK check's business (check_ik_request).
+            if let Some(joints) = &req.joints {
+                for robot in robots() {
+                    evaluate_one(service, robot, joints, &opts, req.frames);
+                }
             }
         }
         Err(e) => assert_client_error(&Error::from(e), "WsRequest"),
@@ -263,7 +272,7 @@ fn service() -> &'static Service {
 /// Built-in robots covering revolute limits (puma560), prismatic joints with
 /// limits (stanford, cylindrical_3dof), unlimited revolute joints (scara_4dof),
 /// and a model with unlimited, parallel prismatic joints.
-fn robots() -> &'static [Robot] {
+pub(crate) fn robots() -> &'static [Robot] {
     static ROBOTS: OnceLock<Vec<Robot>> = OnceLock::new();
     ROBOTS.get_or_init(|| {
         let files: [&[u8]; 4] = [
@@ -333,7 +342,7 @@ fn same_within_ulps(a: &serde_json::Value, b: &serde_json::Value) -> bool {
 }
 
 /// A model or request error must be one the client caused (HTTP 4xx).
-fn assert_client_error(e: &Error, what: &str) {
+pub(crate) fn assert_client_error(e: &Error, what: &str) {
     let status = Problem::from_error(e).status;
     assert!(
         (400..500).contains(&status),
@@ -352,7 +361,7 @@ fn expect_invalid(r: Result<Transform, ModelError>, what: &str) {
 }
 
 /// Finite and rigid, and its pose form (quaternion, rpy) is finite and unit.
-fn check_pose(t: &Transform, what: &str, q: &[f64]) {
+pub(crate) fn check_pose(t: &Transform, what: &str, q: &[f64]) {
     let finite = t.rotation.iter().flatten().all(|x| x.is_finite())
         && t.translation.iter().all(|x| x.is_finite());
     assert!(finite, "{what}: non-finite pose {t:?} for q = {q:?}");
@@ -409,7 +418,7 @@ fn check_agree(a: &Transform, b: &Transform, scale: f64, what: &str, q: &[f64]) 
 
 /// An upper bound on every translation the robot can produce with prismatic
 /// values within the model bound (the scale for translation tolerances).
-fn reach(robot: &Robot) -> f64 {
+pub(crate) fn reach(robot: &Robot) -> f64 {
     let n = robot
         .joints()
         .iter()

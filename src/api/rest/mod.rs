@@ -7,6 +7,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod velocity;
 mod ws;
 
 use std::sync::Arc;
@@ -30,7 +31,10 @@ use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
-pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
+pub use dto::{
+    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
+    WsRequest,
+};
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
 
@@ -104,14 +108,15 @@ impl Modify for SecurityAddon {
 /// The OpenAPI 3.1 document of the REST API.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "kinserve", description = "Forward kinematics of serial robots (Denavit–Hartenberg tables)."),
+    info(title = "kinserve", description = "Forward, velocity and inverse kinematics of serial robots (Denavit–Hartenberg tables)."),
     paths(
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, ws::stream, metrics_text,
+        handlers::fk, handlers::fk_batch, velocity::jacobian, velocity::jacobian_batch,
+        velocity::ik, velocity::ik_batch, ws::stream, metrics_text,
         export::closed_form, export::urdf
     ),
-    components(schemas(WsRequest, dto::WsReply)),
+    components(schemas(WsRequest, dto::WsReply, dto::WsJacobian, dto::WsIk)),
     modifiers(&SecurityAddon, &Complete)
 )]
 pub struct ApiDoc;
@@ -245,6 +250,10 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/fk",
         "/v1/robots/{name}/fk/batch",
         "/v1/robots/{name}/fk/stream",
+        "/v1/robots/{name}/jacobian",
+        "/v1/robots/{name}/jacobian/batch",
+        "/v1/robots/{name}/ik",
+        "/v1/robots/{name}/ik/batch",
         "/v1/robots/{name}/closed-form",
         "/v1/robots/{name}/urdf",
         "/v1/robots/{name}",
@@ -401,7 +410,20 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/fk/batch",
             axum::routing::post(handlers::fk_batch),
         )
-        .route("/v1/robots/{name}/fk/stream", get(ws::stream));
+        .route("/v1/robots/{name}/fk/stream", get(ws::stream))
+        .route(
+            "/v1/robots/{name}/jacobian",
+            axum::routing::post(velocity::jacobian),
+        )
+        .route(
+            "/v1/robots/{name}/jacobian/batch",
+            axum::routing::post(velocity::jacobian_batch),
+        )
+        .route("/v1/robots/{name}/ik", axum::routing::post(velocity::ik))
+        .route(
+            "/v1/robots/{name}/ik/batch",
+            axum::routing::post(velocity::ik_batch),
+        );
     let export = Router::new()
         .route("/v1/robots/{name}/closed-form", get(export::closed_form))
         .route("/v1/robots/{name}/urdf", get(export::urdf));

@@ -25,6 +25,14 @@ const TAGS: &[(&str, &str)] = &[
         "robots",
         "The robot registry: list, read, register, replace, delete.",
     ),
+    (
+        "velocity",
+        "Velocity kinematics: the geometric Jacobian with manipulability, condition number and singularity, one configuration or a batch.",
+    ),
+    (
+        "ik",
+        "Inverse kinematics: joints that reach a target pose (numerical, limits respected), one target or a batch tracking a path.",
+    ),
     ("health", "Liveness and readiness probes."),
     ("operations", "Metrics for operators."),
 ];

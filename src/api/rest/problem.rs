@@ -5,6 +5,7 @@ use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::api::velocity::IkItem;
 use crate::error::Error;
 
 /// A field-level error inside a problem.
@@ -31,6 +32,10 @@ pub struct Problem {
     /// Field-level errors, whenever a field is at fault.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub errors: Vec<ProblemField>,
+    /// With `ik-not-converged`: the best attempt (joints in the request's
+    /// angle unit, within the joint limits) and its errors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub best_attempt: Option<IkItem>,
 }
 
 /// Status, problem kind and title of an error. Exhaustive: every error kind has its HTTP meaning here.
@@ -94,6 +99,11 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             "storage",
             "Storage failure",
         ),
+        Error::IkNotConverged { .. } => (
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "ik-not-converged",
+            "Inverse kinematics did not converge",
+        ),
         Error::Internal { .. } => (
             StatusCode::INTERNAL_SERVER_ERROR,
             "internal",
@@ -130,6 +140,10 @@ impl Problem {
             status: status.as_u16(),
             detail: e.to_string(),
             errors,
+            best_attempt: match e {
+                Error::IkNotConverged { best, .. } => Some(IkItem::from(best.as_ref())),
+                _ => None,
+            },
         }
     }
 }
@@ -154,6 +168,7 @@ impl Problem {
             status: status.as_u16(),
             detail,
             errors: Vec::new(),
+            best_attempt: None,
         }
     }
 }
