@@ -57,6 +57,10 @@ fn single(c: &mut Criterion) {
                 })
             })
         });
+        let mut frames = vec![Transform::IDENTITY; chain.rows() + 1];
+        g.bench_function("frames_to_slice", |b| {
+            b.iter(|| chain.forward_frames_to(black_box(&q), 1.0, &mut frames))
+        });
         g.bench_function("plain_product", |b| {
             b.iter(|| forward_reference(chain, black_box(&q), 1.0))
         });

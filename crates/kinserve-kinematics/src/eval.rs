@@ -546,7 +546,7 @@ pub(crate) unsafe fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f
 /// Where the frames path puts the frames (one dispatch per evaluation).
 #[allow(
     clippy::large_enum_variant,
-    reason = "a Sink lives on the stack for one evaluation; boxing the burst buffer would allocate per call"
+    reason = "lives on the stack for one evaluation; boxing the burst buffer would allocate"
 )]
 pub(crate) enum Sink<'a> {
     /// To a callback, in bursts.

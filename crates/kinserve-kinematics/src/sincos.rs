@@ -10,7 +10,7 @@
 //! function is exact-as-std everywhere else.
 
 //!
-//! Depends only on the kernel module ([`crate::Kernel`]).
+//! Depends only on the crate's kernel choice ([`Kernel`]).
 
 // The constants below are published ones, kept digit for digit as printed (fdlibm, Cephes).
 #![allow(clippy::excessive_precision)]
@@ -104,7 +104,7 @@ pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
 #[inline(always)]
 #[allow(
     clippy::neg_cmp_op_on_partial_ord,
-    reason = "the negated comparison is the point: NaN and ±inf must answer true in one comparison"
+    reason = "NaN must count as needing std; one comparison keeps it vectorisable"
 )]
 pub fn needs_std(x: f64) -> bool {
     !(x.abs() <= POLY_LIMIT)
