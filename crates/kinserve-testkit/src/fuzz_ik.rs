@@ -57,12 +57,22 @@ fn single(robot: &Robot, spec: &IkSpec) {
     };
     let answer = request.solve(Some(Instant::now() + SOLVE_CAP));
     let tolerance = request.options().tolerance;
-    check_answer(robot, &answer, request.target(), spec.angle_unit, tolerance, spec.position_only);
+    check_answer(
+        robot,
+        &answer,
+        request.target(),
+        spec.angle_unit,
+        tolerance,
+        spec.position_only,
+    );
     if !answer.converged {
         let e = Error::ik_not_converged(answer, robot.length_unit().as_str());
         let p = Problem::from_error(&e);
         assert_eq!(p.status, 422, "not converged is a 422");
-        assert!(p.best_attempt.is_some(), "not converged carries the best attempt");
+        assert!(
+            p.best_attempt.is_some(),
+            "not converged carries the best attempt"
+        );
     }
 }
 
@@ -86,8 +96,17 @@ fn batch(robot: &Robot, spec: &IkBatchSpec) {
         };
         let target = robot.check_ik(&alone).map(|r| *r.target());
         let target = target.unwrap_or_else(|e| panic!("a batch target is refused alone: {e}"));
-        let tolerance = spec.tolerance.unwrap_or(kinserve_kinematics::ik::DEFAULT_TOLERANCE);
-        check_answer(robot, a, &target, spec.angle_unit, tolerance, spec.position_only);
+        let tolerance = spec
+            .tolerance
+            .unwrap_or(kinserve_kinematics::ik::DEFAULT_TOLERANCE);
+        check_answer(
+            robot,
+            a,
+            &target,
+            spec.angle_unit,
+            tolerance,
+            spec.position_only,
+        );
     }
 }
 
@@ -108,7 +127,8 @@ fn check_answer(
     };
     let pose = q.fk();
     check_pose(&a.pose, "ik answer", &a.joints);
-    let scale = 1.0 + pose.translation.iter().map(|x| x.abs()).sum::<f64>() + joint_scale(robot, &a.joints);
+    let scale =
+        1.0 + pose.translation.iter().map(|x| x.abs()).sum::<f64>() + joint_scale(robot, &a.joints);
     assert!(
         pose.max_abs_diff(&a.pose) <= 1e-9 * scale,
         "{what}: the answer's pose is not the FK of its joints"
@@ -125,15 +145,25 @@ fn check_answer(
     let w = rotation_error(&target.pose, &a.pose);
     let dr = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
     match a.orientation_error {
-        Some(e) => assert!(target.oriented && (e - dr).abs() <= 1e-9, "{what}: orientation error"),
+        Some(e) => assert!(
+            target.oriented && (e - dr).abs() <= 1e-9,
+            "{what}: orientation error"
+        ),
         None => assert!(!target.oriented, "{what}: orientation error missing"),
     }
     let within = a.position_error <= tolerance
         && (position_only || a.orientation_error.is_none_or(|e| e <= tolerance));
-    assert_eq!(a.converged, within, "{what}: converged says {}", a.converged);
+    assert_eq!(
+        a.converged, within,
+        "{what}: converged says {}",
+        a.converged
+    );
     let json = serde_json::to_value(IkItem::from(a)).expect("serialises");
     let nulls = json.to_string().matches("null").count();
-    assert!(nulls <= usize::from(a.orientation_error.is_none()), "{what}: null in {json}");
+    assert!(
+        nulls <= usize::from(a.orientation_error.is_none()),
+        "{what}: null in {json}"
+    );
 }
 
 /// Magnitude of the prismatic joint values (they move the tool by as much).
