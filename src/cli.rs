@@ -1,5 +1,5 @@
 //! The `kinserve` command line: `serve` (default), `validate`, `fk`,
-//! `jacobian`, `ik`, `closed-form`, `urdf`, `healthcheck`.
+//! `jacobian`, `ik`, `closed-form`, `urdf`, `bench` (in [`crate::bench`]), `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -30,6 +30,10 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Ik(args)) => ik(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
+        Some(Command::Bench(args)) => match load_model(&args.which) {
+            Ok(robot) => crate::bench::run(&robot, &args),
+            Err(code) => code,
+        },
         Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
     }
 }

@@ -45,6 +45,8 @@ pub enum Command {
     ClosedForm(ClosedFormArgs),
     /// Print a robot as URDF (metres, radians; the REST API's `urdf` response).
     Urdf(ModelArgs),
+    /// Time FK of a model on this machine: single pose, with every frame, batched.
+    Bench(BenchArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
     /// Used as the container HEALTHCHECK (the image has no curl).
     Healthcheck {
@@ -206,6 +208,28 @@ pub enum ClosedFormFormat {
     Latex,
     /// ⁰Tₙ as presentation MathML.
     Mathml,
+}
+
+/// Arguments of `kinserve bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Configurations in the batch figure.
+    #[arg(long, default_value_t = 10_000, value_parser = parse_batch)]
+    pub batch: usize,
+    /// Print `{"robot", "simd", "single_ns", "frames_ns", "batch_ns_per_pose"}` (ns) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `--batch` of `kinserve bench`: 1 to 1,000,000 configurations.
+fn parse_batch(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n @ 1..=1_000_000) => Ok(n),
+        _ => Err(format!("not a batch size from 1 to 1000000: '{s}'")),
+    }
 }
 
 /// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.

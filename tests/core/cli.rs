@@ -1,4 +1,4 @@
-//! The `kinserve` command line: `fk` and `validate`.
+//! The `kinserve` command line: `fk`, `validate` and `bench`.
 
 use kinserve_testkit::RobotExt;
 use std::process::Command;
@@ -188,6 +188,47 @@ fn urdf_prints_the_document_and_errors_exit_non_zero() {
         assert!(out.stdout.is_empty(), "{args:?}");
         assert!(!out.stderr.is_empty(), "{args:?}");
     }
+}
+
+#[test]
+fn bench_prints_positive_finite_figures_and_the_kernel() {
+    for source in [["--robot", "puma560"], ["--model", "robots/panda.json"]] {
+        let out = kinserve()
+            .arg("bench")
+            .args(source)
+            .args(["--batch", "64", "--json"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(v["robot"] == "puma560" || v["robot"] == "panda", "{v}");
+        let kernels: Vec<&str> = kinserve::kinematics::Kernel::ALL
+            .iter()
+            .map(|k| k.name())
+            .collect();
+        assert!(kernels.contains(&v["simd"].as_str().unwrap()), "{v}");
+        for field in ["single_ns", "frames_ns", "batch_ns_per_pose"] {
+            let x = v[field].as_f64().unwrap_or(f64::NAN);
+            assert!(x.is_finite() && x > 0.0, "{field}: {v}");
+        }
+        assert_eq!(v.as_object().unwrap().len(), 5, "{v}");
+    }
+    let table = kinserve()
+        .args(["bench", "--robot", "ur5e", "--batch", "16"])
+        .output()
+        .unwrap();
+    assert!(table.status.success());
+    assert!(String::from_utf8_lossy(&table.stdout).contains("ns/pose"));
+    let missing = kinserve()
+        .args(["bench", "--robot", "no_such_robot"])
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no_such_robot"));
 }
 
 fn run_json(args: &[&str]) -> (bool, serde_json::Value, String) {

@@ -57,6 +57,12 @@ pub const MAX_LINK_NAME_CHARS: usize = 64;
 /// magnitude below `f64::MAX`, so FK never overflows to infinity or NaN.
 pub const MAX_MAGNITUDE: f64 = 1e9;
 
+/// Largest magnitude of a revolute joint value accepted in an FK request, in
+/// rad (±1e5 rad, about ±15,900 turns; ±5,729,578° in degrees). Beyond it the
+/// angle's own rounding (an ulp of 1e5 is 1.5e-11 rad) would start to differ
+/// between evaluation paths; no joint turns that far.
+pub const MAX_REVOLUTE_RAD: f64 = 1e5;
+
 /// Checks a robot name: 1–64 characters of `[a-z0-9_-]`, first a letter or digit.
 pub fn validate_name(name: &str) -> std::result::Result<(), String> {
     if name.is_empty() {

@@ -29,8 +29,8 @@ use kinserve::registry::{MemoryStore, Registry};
 use kinserve::service::{Configurations, Service, ServiceLimits};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
-    AngleUnit, FkOptions, MAX_MAGNITUDE, ModelError, ModelLimits, RIGID_TOLERANCE, Robot,
-    parse_json,
+    AngleUnit, FkOptions, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError, ModelLimits,
+    RIGID_TOLERANCE, Robot, parse_json,
 };
 
 pub use crate::fuzz_ik::check_ik_request;
@@ -105,7 +105,8 @@ pub fn check_model(bytes: &[u8]) {
         );
     }
 
-    // Limits off: any finite revolute value, prismatic values within the bound.
+    // Limits off: revolute values within ±MAX_REVOLUTE_RAD (in rad, so also
+    // accepted as degrees), prismatic values within their bound.
     let free = FkOptions {
         angle_unit: AngleUnit::Rad,
         check_limits: false,
@@ -116,7 +117,7 @@ pub fn check_model(bytes: &[u8]) {
             .iter()
             .map(|j| match j.kind {
                 JointKind::Prismatic => rng.bounded(MAX_MAGNITUDE),
-                _ => rng.any_finite(),
+                _ => rng.bounded(MAX_REVOLUTE_RAD),
             })
             .collect();
         match robot.fk(&q, &free) {
@@ -145,6 +146,15 @@ pub fn check_model(bytes: &[u8]) {
     let mut bad = configs[0].clone();
     bad[rng.below(dof)] = f64::NAN;
     expect_invalid(robot.fk(&bad, &free), "NaN joint value");
+    if let Some(i) = robot
+        .joints()
+        .iter()
+        .position(|j| j.kind == JointKind::Revolute)
+    {
+        let mut far = vec![0.0; robot.dof()];
+        far[i] = 2.0 * MAX_REVOLUTE_RAD;
+        expect_invalid(robot.fk(&far, &free), "revolute value beyond the bound");
+    }
     if let Some(i) = robot
         .joints()
         .iter()
@@ -462,7 +472,7 @@ fn in_limit_configurations(robot: &Robot, rng: &mut Rng) -> Vec<Vec<f64>> {
                 (lo * (1.0 - f) + hi * f).clamp(lo, hi)
             }
             (None, JointKind::Prismatic) => rng.bounded(MAX_MAGNITUDE),
-            (None, _) => rng.any_finite(),
+            (None, _) => rng.bounded(MAX_REVOLUTE_RAD),
         }));
     }
     out
@@ -506,32 +516,6 @@ impl Rng {
             2 => 0.0,
             3 => self.unit() * 2.0 - 1.0,
             _ => (self.unit() * 2.0 - 1.0) * bound,
-        }
-    }
-
-    /// Any finite value, favouring the awkward ones.
-    fn any_finite(&mut self) -> f64 {
-        const SPECIAL: [f64; 12] = [
-            0.0,
-            -0.0,
-            std::f64::consts::PI,
-            -std::f64::consts::FRAC_PI_2,
-            1.0e5,
-            1.0e5 + 1.0,
-            1.0e15,
-            1.0e300,
-            f64::MAX,
-            -f64::MAX,
-            f64::MIN_POSITIVE,
-            5e-324,
-        ];
-        match self.below(3) {
-            0 => SPECIAL[self.below(SPECIAL.len())],
-            1 => (self.unit() * 2.0 - 1.0) * 10.0,
-            _ => {
-                let x = f64::from_bits(self.next());
-                if x.is_finite() { x } else { 1.0 }
-            }
         }
     }
 }
