@@ -270,9 +270,22 @@ pub struct ServeConfig {
     /// built-in robots, which are embedded in the binary.
     #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
     pub robots_dir: Option<PathBuf>,
-    /// Where registered robots are persisted.
+    /// Where registered robots are persisted (unused with --database-url).
     #[arg(long, env = "KINSERVE_DATA_DIR", default_value = "./data")]
     pub data_dir: PathBuf,
+    /// PostgreSQL (13+) holding the registered robots, shared by every replica:
+    /// `postgres://user:password@host:5432/db` (or `key=value` form). Unset:
+    /// the file store in --data-dir. Never logged.
+    #[arg(long, env = "KINSERVE_DATABASE_URL", hide_env_values = true)]
+    pub database_url: Option<String>,
+    /// A file holding the database password (its first line), which replaces
+    /// any password in --database-url (e.g. a mounted secret).
+    #[arg(long, env = "KINSERVE_DATABASE_PASSWORD_FILE")]
+    pub database_password_file: Option<PathBuf>,
+    /// With a database: full resync of the snapshot at this interval, besides
+    /// LISTEN/NOTIFY and the resync after every reconnect.
+    #[arg(long, env = "KINSERVE_DATABASE_RESYNC_INTERVAL", default_value = "30s", value_parser = parse_duration)]
+    pub database_resync_interval: Duration,
     /// Bearer token required for register/replace/delete (REST and gRPC). Unset: open (a warning is logged).
     #[arg(long, env = "KINSERVE_API_TOKEN", hide_env_values = true)]
     pub api_token: Option<String>,
@@ -336,6 +349,9 @@ impl std::fmt::Debug for ServeConfig {
             grpc_addr,
             robots_dir,
             data_dir,
+            database_url,
+            database_password_file,
+            database_resync_interval,
             api_token,
             cors_origins,
             log_format,
@@ -358,6 +374,9 @@ impl std::fmt::Debug for ServeConfig {
             .field("grpc_addr", grpc_addr)
             .field("robots_dir", robots_dir)
             .field("data_dir", data_dir)
+            .field("database_url", &database_url.as_ref().map(|_| "<redacted>"))
+            .field("database_password_file", database_password_file)
+            .field("database_resync_interval", database_resync_interval)
             .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
             .field("cors_origins", cors_origins)
             .field("log_format", log_format)
@@ -400,6 +419,9 @@ impl ServeConfig {
             grpc_addr: "127.0.0.1:0".parse().expect("valid literal"),
             robots_dir: None,
             data_dir,
+            database_url: None,
+            database_password_file: None,
+            database_resync_interval: Duration::from_secs(30),
             api_token: None,
             cors_origins: Vec::new(),
             log_format: LogFormat::Human,
@@ -460,11 +482,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn debug_output_hides_the_token() {
+    fn debug_output_hides_the_token_and_the_database_url() {
         let mut c = ServeConfig::for_tests("data".into());
         c.api_token = Some("s3cr3t-value".into());
+        c.database_url = Some("postgres://kin:db-pa55word@db.internal:5432/kin".into());
         let shown = format!("{c:?} {:?}", Command::Serve(Box::new(c.clone())));
         assert!(!shown.contains("s3cr3t-value"), "{shown}");
+        assert!(!shown.contains("db-pa55word"), "{shown}");
+        assert!(!shown.contains("db.internal"), "{shown}");
         assert!(shown.contains("<redacted>"), "{shown}");
     }
 }

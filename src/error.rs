@@ -110,6 +110,25 @@ pub enum Error {
         /// The best attempt (joints in the request's angle unit, within limits).
         best: Box<IkAnswer>,
     },
+    /// A conditional write whose condition does not hold: `If-Match` names
+    /// another version (or the robot is gone), or `If-None-Match: *` finds it
+    /// (HTTP 412, gRPC FAILED_PRECONDITION). Nothing was changed.
+    #[error("precondition failed for robot '{name}': {detail}")]
+    PreconditionFailed {
+        /// The robot name.
+        name: String,
+        /// What was expected and what is there.
+        detail: String,
+    },
+    /// The shared store (the database) cannot be reached, or did not answer in
+    /// time; reads and FK go on from the snapshot, writes are refused
+    /// (HTTP 503 + Retry-After, gRPC UNAVAILABLE). Whether a write that timed
+    /// out was committed is unknown: read the robot (or retry with `If-Match`).
+    #[error("registry store unavailable: {detail}")]
+    StoreUnavailable {
+        /// What failed (never the database URL or its password).
+        detail: String,
+    },
     /// A bug: a panic caught in a handler (HTTP 500, gRPC INTERNAL).
     #[error("internal error: {detail}")]
     Internal {

@@ -13,7 +13,7 @@ use crate::model::{
     ClosedForm, FkOptions, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, LengthUnit, ModelLimits,
     ReferenceFrame, Robot, RobotSpec,
 };
-use crate::registry::{Entry, Origin, PutMode, Registry};
+use crate::registry::{Condition, Entry, Origin, PutMode, Registry};
 
 /// Limits the service enforces on requests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -273,36 +273,47 @@ impl Service {
         Ok(crate::model::to_urdf(&entry.robot))
     }
 
-    /// Validates and registers a model, durably. `Ok(true)` if created,
-    /// `Ok(false)` if it replaced a registered robot. Writes one audit line.
-    pub async fn register(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
+    /// Validates and registers a model, durably, if `cond` holds (`If-Match`,
+    /// `If-None-Match: *`, gRPC `etag`). Returns the new entry and whether it
+    /// was created (else it replaced a registered robot). Writes one audit line.
+    pub async fn register(
+        self: &Arc<Self>,
+        spec: RobotSpec,
+        mode: PutMode,
+        cond: Condition,
+    ) -> Result<(Arc<Entry>, bool)> {
         let name = truncate_name(&spec.name);
-        let result = self.register_inner(spec, mode).await;
+        let result = self.register_inner(spec, mode, cond).await;
         let action = match (mode, &result) {
-            (_, Ok(true)) | (PutMode::Create, _) => "register",
+            (_, Ok((_, true))) | (PutMode::Create, _) => "register",
             (PutMode::Upsert, _) => "replace",
         };
         self.audit(action, &name, &result);
         result
     }
 
-    async fn register_inner(self: &Arc<Self>, spec: RobotSpec, mode: PutMode) -> Result<bool> {
+    async fn register_inner(
+        self: &Arc<Self>,
+        spec: RobotSpec,
+        mode: PutMode,
+        cond: Condition,
+    ) -> Result<(Arc<Entry>, bool)> {
         let robot = Robot::from_spec(spec, &self.limits.model)?;
         let this = Arc::clone(self);
-        let created = tokio::task::spawn_blocking(move || this.registry.put(robot, mode))
+        let put = tokio::task::spawn_blocking(move || this.registry.put(robot, mode, cond))
             .await
             .map_err(|e| Error::Internal {
                 detail: e.to_string(),
             })??;
         self.record_robot_count();
-        Ok(created)
+        Ok(put)
     }
 
-    /// Deletes a registered robot, durably. Writes one audit line.
-    pub async fn delete(self: &Arc<Self>, name: &str) -> Result<()> {
+    /// Deletes a registered robot, durably, if `cond` holds. Writes one audit line.
+    pub async fn delete(self: &Arc<Self>, name: &str, cond: Condition) -> Result<()> {
         let this = Arc::clone(self);
         let owned = name.to_string();
-        let result = tokio::task::spawn_blocking(move || this.registry.delete(&owned))
+        let result = tokio::task::spawn_blocking(move || this.registry.delete(&owned, cond))
             .await
             .map_err(|e| Error::Internal {
                 detail: e.to_string(),

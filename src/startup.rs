@@ -19,7 +19,9 @@ use tower::ServiceExt;
 
 use crate::api::rest::{self, AppInner, AppState};
 use crate::config::ServeConfig;
-use crate::registry::{FileStore, Registry};
+use crate::registry::postgres::sync::{Applier, Syncer};
+use crate::registry::postgres::{PgSettings, PgStore};
+use crate::registry::{FileStore, Registry, Store};
 use crate::service::Service;
 
 /// A built, not yet running server.
@@ -31,6 +33,7 @@ pub struct App {
     service: Arc<Service>,
     config: ServeConfig,
     shutdown: CancellationToken,
+    syncer: Option<Syncer>,
 }
 
 /// Triggers a graceful shutdown of a running [`App`].
@@ -45,21 +48,29 @@ impl ShutdownHandle {
 }
 
 impl App {
-    /// Loads robots (built-ins, then the persisted ones) and binds both listeners.
+    /// Opens the store (the database when `--database-url` is set, else the
+    /// data directory), loads robots (built-ins, then the stored ones) and
+    /// binds both listeners.
     pub async fn build(config: ServeConfig) -> std::io::Result<App> {
         let limits = config.service_limits();
-        let store =
-            FileStore::open(&config.data_dir).map_err(|e| std::io::Error::other(e.to_string()))?;
-        let registry = Registry::new(Box::new(store)).with_max_registered(config.max_robots);
+        let (store, syncer) = open_store(&config).await?;
+        let registry = Registry::new(store).with_max_registered(config.max_robots);
         let token = api_token(config.api_token.as_deref())?;
         let builtins = registry.load_builtins(config.robots_dir.as_deref(), &limits.model);
-        let stored = registry.load_stored(&limits.model);
+        let model_limits = limits.model;
+        let (registry, stored) = tokio::task::spawn_blocking(move || {
+            let report = registry.load_stored(&model_limits);
+            (registry, report)
+        })
+        .await
+        .map_err(std::io::Error::other)?;
         for (label, e) in builtins.skipped.iter().chain(&stored.skipped) {
             tracing::error!(file = %label, error = %e, "skipping robot file (left in place)");
         }
         tracing::info!(
             builtin = builtins.loaded,
             registered = stored.loaded,
+            store = registry.store_health().kind,
             "robots loaded"
         );
         let service = Arc::new(Service::new(registry, limits, token));
@@ -73,6 +84,7 @@ impl App {
             service,
             config,
             shutdown: CancellationToken::new(),
+            syncer,
         })
     }
 
@@ -116,7 +128,11 @@ impl App {
             shutdown,
             http_addr,
             grpc_addr,
+            syncer,
         } = self;
+        if let Some(syncer) = syncer {
+            tokio::spawn(syncer.run(applier(service.clone()), shutdown.clone()));
+        }
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
         let state = AppState::new(AppInner {
             service: service.clone(),
@@ -195,6 +211,48 @@ fn api_token(raw: Option<&str>) -> std::io::Result<Option<String>> {
         );
     }
     Ok(Some(trimmed.to_string()))
+}
+
+/// The store `config` asks for: PostgreSQL (with its sync task) when
+/// `--database-url` is set, else the file store in the data directory.
+async fn open_store(config: &ServeConfig) -> std::io::Result<(Box<dyn Store>, Option<Syncer>)> {
+    let Some(url) = &config.database_url else {
+        let store =
+            FileStore::open(&config.data_dir).map_err(|e| std::io::Error::other(e.to_string()))?;
+        return Ok((Box::new(store), None));
+    };
+    let settings = PgSettings {
+        url: url.clone(),
+        password_file: config.database_password_file.clone(),
+        resync_interval: config.database_resync_interval,
+    };
+    let store = PgStore::connect(&settings)
+        .await
+        .map_err(std::io::Error::other)?;
+    tracing::info!("registered robots live in the database (the data directory is not used)");
+    let syncer = store.syncer(settings.resync_interval);
+    Ok((Box::new(store), Some(syncer)))
+}
+
+/// Applies the changes the sync task reads to the service's snapshot, and
+/// counts them by source (`notify`, `resync`).
+fn applier(service: Arc<Service>) -> Applier {
+    Arc::new(move |changes, source| {
+        let limits = service.limits().model;
+        let mut applied = 0u64;
+        for change in changes {
+            match service.registry().apply(change, &limits) {
+                Ok(true) => applied += 1,
+                Ok(false) => {}
+                Err(e) => tracing::error!(error = %e, "ignoring a robot from the database"),
+            }
+        }
+        if applied > 0 {
+            metrics::counter!("kinserve_store_changes_applied_total", "source" => source)
+                .increment(applied);
+            service.record_robot_count();
+        }
+    })
 }
 
 /// Serves the REST router on `listener` (HTTP/1.1 and h2c, WebSocket upgrades)

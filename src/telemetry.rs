@@ -118,6 +118,22 @@ pub const FAMILIES: &[(&str, &str)] = &[
         "Latency of durable registry writes in seconds, by operation (put, delete).",
     ),
     (
+        "kinserve_store_up",
+        "1 while the registry store accepts writes (for postgres: the database is reachable), else 0; by store (file, memory, postgres).",
+    ),
+    (
+        "kinserve_store_snapshot_age_seconds",
+        "Seconds since this replica's snapshot of registered robots was last known to equal the store, by store (0 for the file store).",
+    ),
+    (
+        "kinserve_store_changes_applied_total",
+        "Changes of other replicas (or missed ones) applied to the snapshot from the database, by source (notify, resync).",
+    ),
+    (
+        "kinserve_store_reconnects_total",
+        "Times the database link was lost or could not be made, and a reconnection started.",
+    ),
+    (
         "kinserve_build_info",
         "Always 1; the version label says which build answers.",
     ),
@@ -143,7 +159,10 @@ pub const FAMILIES: &[(&str, &str)] = &[
 
 fn describe_families() {
     for (name, help) in FAMILIES {
-        let kind = if name.starts_with("process_") || *name == "kinserve_build_info" {
+        let kind = if name.starts_with("process_")
+            || *name == "kinserve_build_info"
+            || name.ends_with("_age_seconds")
+        {
             "gauge"
         } else if name.ends_with("_total") {
             "counter"
@@ -295,6 +314,14 @@ fn boot_time() -> Option<f64> {
     stat.lines()
         .find_map(|l| l.strip_prefix("btime "))
         .and_then(|v| v.trim().parse().ok())
+}
+
+/// Publishes the registry store's state: `kinserve_store_up` and
+/// `kinserve_store_snapshot_age_seconds`, labelled by store kind.
+pub fn record_store_health(kind: &'static str, up: bool, snapshot_age: std::time::Duration) {
+    metrics::gauge!("kinserve_store_up", "store" => kind).set(if up { 1.0 } else { 0.0 });
+    metrics::gauge!("kinserve_store_snapshot_age_seconds", "store" => kind)
+        .set(snapshot_age.as_secs_f64());
 }
 
 /// Counts one WebSocket FK message answered (`ok`: a pose, else an error reply).

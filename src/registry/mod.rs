@@ -4,15 +4,18 @@
 //! change durable.
 
 pub mod builtin;
+pub mod postgres;
 mod store;
+pub mod version;
 
 use std::collections::HashMap;
 use std::path::Path;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use arc_swap::ArcSwap;
 
-pub use store::{FileStore, MemoryStore, Store};
+pub use store::{FileStore, MemoryStore, Record, Saved, Store, StoreHealth};
+pub use version::{Condition, Version};
 
 use crate::error::{Error, Result};
 use crate::model::{ModelLimits, Robot};
@@ -34,18 +37,48 @@ pub struct Entry {
     pub robot: Robot,
     /// Built-in or registered.
     pub origin: Origin,
+    /// The stored version (registered robots only).
+    pub version: Option<Version>,
+    /// Its entity tag, quotes included: the revision for registered robots,
+    /// a content hash for built-ins.
+    etag: String,
     /// Its `kinserve_poses_computed_total` counters, resolved on first use.
     poses: OnceLock<PoseCounters>,
 }
 
 impl Entry {
-    /// An entry for `robot`.
+    /// An entry for `robot` with no stored version (a built-in's ETag is a
+    /// hash of its model).
     pub fn new(robot: Robot, origin: Origin) -> Entry {
+        let etag = version::content_etag(&serde_json::to_vec(robot.spec()).unwrap_or_default());
         Entry {
             robot,
             origin,
+            version: None,
+            etag,
             poses: OnceLock::new(),
         }
+    }
+
+    /// A registered robot at `version`.
+    pub fn registered(robot: Robot, version: Version) -> Entry {
+        Entry {
+            robot,
+            origin: Origin::Registered,
+            etag: version.etag(),
+            version: Some(version),
+            poses: OnceLock::new(),
+        }
+    }
+
+    /// The entity tag, quotes included (`"17"`).
+    pub fn etag(&self) -> &str {
+        &self.etag
+    }
+
+    /// The stored revision (registered robots only).
+    pub fn revision(&self) -> Option<u64> {
+        self.version.map(|v| v.revision)
     }
 
     /// Counts `n` poses computed for this robot over `protocol`.
@@ -59,6 +92,21 @@ impl Entry {
     }
 }
 
+/// A change of a registered robot learnt from the store (another replica's
+/// write, or a resync), applied to the snapshot only if newer than what it holds.
+#[derive(Clone, Debug)]
+pub enum Change {
+    /// Created or replaced.
+    Put(Box<Record>),
+    /// Deleted at `revision`.
+    Deleted {
+        /// The robot name.
+        name: String,
+        /// The revision of the deletion.
+        revision: u64,
+    },
+}
+
 /// How a registration treats an existing robot of the same name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PutMode {
@@ -70,10 +118,15 @@ pub enum PutMode {
 
 type Map = HashMap<String, Arc<Entry>>;
 
+/// Deleted names and the revision of their deletion, so that an older change
+/// learnt later does not bring a robot back.
+type Tombstones = HashMap<String, u64>;
+
 /// The set of named robots.
 pub struct Registry {
     map: ArcSwap<Map>,
-    writer: Mutex<()>,
+    /// Serialises snapshot updates (and the writes of a local store).
+    writer: Mutex<Tombstones>,
     store: Box<dyn Store>,
     /// Most registered (not built-in) robots; a new one beyond is refused.
     max_registered: usize,
@@ -101,7 +154,7 @@ impl Registry {
     pub fn new(store: Box<dyn Store>) -> Registry {
         Registry {
             map: ArcSwap::from_pointee(Map::new()),
-            writer: Mutex::new(()),
+            writer: Mutex::new(Tombstones::new()),
             store,
             max_registered: usize::MAX,
         }
@@ -125,7 +178,7 @@ impl Registry {
                 .into_iter()
                 .flatten(),
         );
-        let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
+        let _guard = self.lock();
         let mut map = Map::clone(&self.map.load());
         for (label, result) in files {
             match result {
@@ -144,33 +197,98 @@ impl Registry {
     }
 
     /// Loads every robot the store holds. Unreadable or invalid entries, and
-    /// entries whose name clashes with a built-in, are reported and skipped (left in place).
+    /// entries whose name clashes with a built-in, are reported and skipped
+    /// (left in place). Blocking (store I/O).
     pub fn load_stored(&self, limits: &ModelLimits) -> LoadReport {
         let mut report = LoadReport::default();
-        let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
-        let mut map = Map::clone(&self.map.load());
-        for (label, spec) in self.store.load_all() {
-            match spec.and_then(|s| Ok(Robot::from_spec(s, limits)?)) {
-                Ok(robot) => {
-                    if map
-                        .get(robot.name())
-                        .is_some_and(|e| e.origin == Origin::Builtin)
-                    {
-                        let name = robot.name().to_string();
-                        report.skipped.push((label, Error::ReadOnly { name }));
-                        continue;
-                    }
-                    map.insert(
-                        robot.name().to_string(),
-                        Arc::new(Entry::new(robot, Origin::Registered)),
-                    );
-                    report.loaded += 1;
-                }
+        for (label, record) in self.store.load_all() {
+            match record.and_then(|r| self.apply(Change::Put(Box::new(r)), limits)) {
+                Ok(_) => report.loaded += 1,
                 Err(e) => report.skipped.push((label, e)),
             }
         }
-        self.map.store(Arc::new(map));
         report
+    }
+
+    /// Applies a change learnt from the store if it is newer than what the
+    /// snapshot holds for that name (`Ok(false)`: stale, ignored). A model
+    /// that is invalid here (e.g. over this replica's limits), or whose name
+    /// is a built-in's, is an error and changes nothing.
+    pub fn apply(&self, change: Change, limits: &ModelLimits) -> Result<bool> {
+        let (name, revision) = match &change {
+            Change::Put(r) => (r.spec.name.as_str(), r.version.revision),
+            Change::Deleted { name, revision } => (name.as_str(), *revision),
+        };
+        if self.known_revision(name).is_some_and(|k| k >= revision) {
+            return Ok(false);
+        }
+        let (name, revision, entry) = match change {
+            Change::Put(r) => {
+                let r = *r;
+                let robot = Robot::from_spec(r.spec, limits)?;
+                let name = robot.name().to_string();
+                let entry = Arc::new(Entry::registered(robot, r.version));
+                (name, r.version.revision, Some(entry))
+            }
+            Change::Deleted { name, revision } => (name, revision, None),
+        };
+        let mut guard = self.lock();
+        self.publish(&mut guard, &name, revision, entry)
+    }
+
+    /// Puts `entry` (or, for `None`, a tombstone) under `name` if `revision`
+    /// is newer than the snapshot's; built-ins are never replaced.
+    fn publish(
+        &self,
+        tombstones: &mut MutexGuard<'_, Tombstones>,
+        name: &str,
+        revision: u64,
+        entry: Option<Arc<Entry>>,
+    ) -> Result<bool> {
+        let current = self.map.load_full();
+        let known = match current.get(name) {
+            Some(e) if e.origin == Origin::Builtin => {
+                return Err(Error::ReadOnly {
+                    name: name.to_string(),
+                });
+            }
+            Some(e) => e.revision(),
+            None => tombstones.get(name).copied(),
+        };
+        if known.is_some_and(|k| k >= revision) {
+            return Ok(false);
+        }
+        let mut map = Map::clone(&current);
+        match entry {
+            Some(e) => {
+                tombstones.remove(name);
+                map.insert(name.to_string(), e);
+            }
+            None => {
+                tombstones.insert(name.to_string(), revision);
+                map.remove(name);
+            }
+        }
+        self.map.store(Arc::new(map));
+        Ok(true)
+    }
+
+    /// The revision the snapshot holds for `name` (a robot's or a deletion's).
+    fn known_revision(&self, name: &str) -> Option<u64> {
+        let tombstones = self.lock();
+        match self.map.load().get(name) {
+            Some(e) => e.revision(),
+            None => tombstones.get(name).copied(),
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Tombstones> {
+        self.writer.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// How the store is doing.
+    pub fn store_health(&self) -> StoreHealth {
+        self.store.health()
     }
 
     /// The robot called `name`, if any. Lock-free.
@@ -193,20 +311,20 @@ impl Registry {
         (builtin, map.len() - builtin)
     }
 
-    /// Registers `robot`, persisting it first. Returns `true` if it was created,
-    /// `false` if it replaced a registered robot. Blocking (store I/O).
-    pub fn put(&self, robot: Robot, mode: PutMode) -> Result<bool> {
-        let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
-        let current = self.map.load_full();
+    /// Registers `robot` if `cond` holds, persisting it first; returns the
+    /// new entry and whether it was created. [`PutMode::Create`] fails with
+    /// [`Error::AlreadyExists`] when the name is taken (whatever `cond`).
+    /// Blocking (store I/O).
+    pub fn put(&self, robot: Robot, mode: PutMode, cond: Condition) -> Result<(Arc<Entry>, bool)> {
         let name = robot.name().to_string();
-        let created = match current.get(&name) {
-            Some(e) if e.origin == Origin::Builtin => return Err(Error::ReadOnly { name }),
-            Some(_) if mode == PutMode::Create => return Err(Error::AlreadyExists { name }),
-            Some(_) => false,
-            None => true,
+        let cond = match mode {
+            PutMode::Create => Condition::Absent,
+            PutMode::Upsert => cond,
         };
-        if created {
-            let registered = current
+        if self.map.load().get(&name).is_none() {
+            let registered = self
+                .map
+                .load()
                 .values()
                 .filter(|e| e.origin == Origin::Registered)
                 .count();
@@ -219,36 +337,74 @@ impl Registry {
                 });
             }
         }
-        timed_write("put", || self.store.save(robot.spec()))?;
-        let mut map = Map::clone(&current);
-        map.insert(name, Arc::new(Entry::new(robot, Origin::Registered)));
-        self.map.store(Arc::new(map));
-        Ok(created)
+        let spec = robot.spec().clone();
+        let result = self.write(
+            &name,
+            "put",
+            |known| self.store.save(&spec, &cond, known),
+            |saved| {
+                let entry = Arc::new(Entry::registered(robot, saved.version));
+                (
+                    saved.version.revision,
+                    Some(entry.clone()),
+                    (entry, saved.created),
+                )
+            },
+        );
+        match (mode, result) {
+            (PutMode::Create, Err(Error::PreconditionFailed { name, .. })) => {
+                Err(Error::AlreadyExists { name })
+            }
+            (_, r) => r,
+        }
     }
 
-    /// Deletes a registered robot, durably. Blocking (store I/O).
-    pub fn delete(&self, name: &str) -> Result<()> {
-        let _guard = self.writer.lock().unwrap_or_else(|p| p.into_inner());
-        let current = self.map.load_full();
-        match current.get(name) {
-            None => {
-                return Err(Error::NotFound {
+    /// Deletes a registered robot if `cond` holds, durably. Blocking (store I/O).
+    pub fn delete(&self, name: &str, cond: Condition) -> Result<()> {
+        self.write(
+            name,
+            "delete",
+            |known| self.store.delete(name, &cond, known),
+            |v| (v.revision, None, ()),
+        )
+    }
+
+    /// One write of `name` to the store, then its publication in the snapshot.
+    /// A local store's write runs under the writer lock with the snapshot's
+    /// revision as `known`; a shared store arbitrates itself, and the lock is
+    /// taken only to publish (a newer change learnt meanwhile wins).
+    fn write<S, T>(
+        &self,
+        name: &str,
+        op: &'static str,
+        store_write: impl FnOnce(Option<u64>) -> Result<S>,
+        outcome: impl FnOnce(S) -> (u64, Option<Arc<Entry>>, T),
+    ) -> Result<T> {
+        let builtin = |map: &Map| {
+            map.get(name)
+                .is_some_and(|e| e.origin == Origin::Builtin)
+                .then(|| Error::ReadOnly {
                     name: name.to_string(),
-                    suggestions: Vec::new(),
-                });
+                })
+        };
+        if self.store.is_shared() {
+            if let Some(e) = builtin(&self.map.load()) {
+                return Err(e);
             }
-            Some(e) if e.origin == Origin::Builtin => {
-                return Err(Error::ReadOnly {
-                    name: name.to_string(),
-                });
-            }
-            Some(_) => {}
+            let (revision, entry, out) = outcome(timed_write(op, || store_write(None))?);
+            let mut guard = self.lock();
+            self.publish(&mut guard, name, revision, entry)?;
+            return Ok(out);
         }
-        timed_write("delete", || self.store.delete(name))?;
-        let mut map = Map::clone(&current);
-        map.remove(name);
-        self.map.store(Arc::new(map));
-        Ok(())
+        let mut guard = self.lock();
+        let current = self.map.load_full();
+        if let Some(e) = builtin(&current) {
+            return Err(e);
+        }
+        let known = current.get(name).and_then(|e| e.revision());
+        let (revision, entry, out) = outcome(timed_write(op, || store_write(known))?);
+        self.publish(&mut guard, name, revision, entry)?;
+        Ok(out)
     }
 }
 

@@ -364,6 +364,7 @@ async fn a_full_disk_is_507_and_unavailable_and_changes_nothing() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(robot),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err();
@@ -444,6 +445,7 @@ async fn an_unwritable_data_directory_is_507_and_unavailable_and_reads_go_on() {
     let mut g = app.grpc_client().await;
     let mut req = tonic::Request::new(pb::DeleteRobotRequest {
         name: "kept".into(),
+        ..Default::default()
     });
     req.metadata_mut()
         .insert("authorization", auth.parse().unwrap());

@@ -142,6 +142,7 @@ async fn two_authorization_headers_are_malformed_on_rest_and_grpc() {
     let mut client = app.grpc_client().await;
     let mut req = tonic::Request::new(pb::DeleteRobotRequest {
         name: "twice".into(),
+        etag: String::new(),
     });
     req.metadata_mut()
         .append("authorization", "Bearer s3cret".parse().unwrap());
@@ -202,6 +203,7 @@ async fn the_registry_is_bounded_by_max_robots() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(planar_pb("three")),
             replace: false,
+            etag: String::new(),
         })
         .await
         .unwrap_err();

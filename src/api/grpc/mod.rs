@@ -19,7 +19,7 @@ use tokio_util::sync::CancellationToken;
 use tonic::{Request, Response, Status, Streaming};
 
 use crate::error::Error;
-use crate::registry::PutMode;
+use crate::registry::{Condition, PutMode};
 use crate::service::{Configurations, Service};
 use crate::telemetry::{Protocol, StreamGuard};
 
@@ -260,6 +260,7 @@ impl KinematicsService for GrpcService {
         Ok(Response::new(pb::GetRobotResponse {
             robot: Some(convert::robot_to_pb(entry.robot.spec())),
             source: convert::origin_to_pb(entry.origin) as i32,
+            etag: entry.etag().to_string(),
         }))
     }
 
@@ -274,17 +275,27 @@ impl KinematicsService for GrpcService {
             .robot
             .ok_or_else(|| Error::invalid_field("robot", "is required"))?;
         let spec = convert::robot_from_pb(robot)?;
-        let name = spec.name.clone();
         let mode = if req.replace {
             PutMode::Upsert
         } else {
             PutMode::Create
         };
-        let created = self.service.register(spec, mode).await?;
-        let entry = self.service.robot(&name)?;
+        let cond = match (req.etag.as_str(), req.replace) {
+            ("", _) => Condition::Any,
+            (_, false) => {
+                return Err(Error::malformed_field(
+                    "etag",
+                    "a condition on the current version needs replace: true (replace: false already means create only)",
+                )
+                .into());
+            }
+            (tag, true) => Condition::if_match(tag, "etag")?,
+        };
+        let (entry, created) = self.service.register(spec, mode, cond).await?;
         Ok(Response::new(pb::RegisterRobotResponse {
             robot: Some(convert::robot_to_pb(entry.robot.spec())),
             created,
+            etag: entry.etag().to_string(),
         }))
     }
 
@@ -294,7 +305,12 @@ impl KinematicsService for GrpcService {
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
         self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
-        self.service.delete(&req.get_ref().name).await?;
+        let req = req.into_inner();
+        let cond = match req.etag.as_str() {
+            "" => Condition::Any,
+            tag => Condition::if_match(tag, "etag")?,
+        };
+        self.service.delete(&req.name, cond).await?;
         Ok(Response::new(pb::DeleteRobotResponse {}))
     }
 

@@ -25,6 +25,8 @@ pub fn code_of(e: &Error) -> Code {
         Error::Unavailable { .. } => Code::Unavailable,
         Error::Storage { .. } => Code::Unavailable,
         Error::IkNotConverged { .. } => Code::FailedPrecondition,
+        Error::PreconditionFailed { .. } => Code::FailedPrecondition,
+        Error::StoreUnavailable { .. } => Code::Unavailable,
         Error::Internal { .. } => Code::Internal,
     }
 }

@@ -43,6 +43,29 @@ pub struct RobotList {
     pub next_page_token: Option<String>,
 }
 
+/// `GET /readyz`: ready, and how the registry store is doing.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"status": "ready", "store": {"kind": "postgres", "state": "down", "snapshot_age_seconds": 12.5}}))]
+pub struct Readiness {
+    /// Always `ready` (a 200 answer).
+    pub status: String,
+    /// The registry store.
+    pub store: StoreState,
+}
+
+/// The registry store's state in `/readyz`. A store that is down does not
+/// make the server unready: FK, list and get go on from the snapshot; only
+/// writes are refused (503).
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+pub struct StoreState {
+    /// `file` (the data directory), `postgres` or `memory`.
+    pub kind: String,
+    /// `up` (writes accepted) or `down` (writes answered 503; reconnecting).
+    pub state: String,
+    /// Seconds since the snapshot was last known to equal the store.
+    pub snapshot_age_seconds: f64,
+}
+
 /// Query of `GET /v1/robots` (AIP-158 pagination).
 #[derive(Clone, Debug, Deserialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]

@@ -2,20 +2,20 @@
 
 use axum::Json;
 use axum::extract::State;
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
-use super::dto::ListParams;
 use super::dto::{
     FkBatchRequest, FkBatchResponse, FkRequest, PosesSer, RobotList, RobotSummaryDto,
 };
+use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::{FkOutput, Pose};
 use crate::error::Error;
 use crate::model::RobotSpec;
-use crate::registry::{Origin, PutMode};
+use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::telemetry::Protocol;
 use axum::extract::Query;
 use axum::extract::rejection::QueryRejection;
@@ -35,13 +35,23 @@ pub async fn healthz() -> &'static str {
     "ok"
 }
 
-/// Readiness: 200 once robots are loaded, 503 while starting or shutting down.
+/// Readiness: 200 once robots are loaded, 503 while starting or shutting
+/// down. The body says how the registry store is doing; a store that is down
+/// leaves the server ready (FK, list and get are served from the snapshot).
 #[utoipa::path(get, path = "/readyz", tag = "health", responses(
-    (status = 200, description = "Ready"),
+    (status = 200, description = "Ready; the registry store's state", body = Readiness),
     (status = 503, description = "Starting or shutting down", body = Problem, content_type = "application/problem+json")))]
-pub async fn readyz(State(state): State<AppState>) -> ApiResult<&'static str> {
+pub async fn readyz(State(state): State<AppState>) -> ApiResult<Json<Readiness>> {
     if state.service.is_ready() {
-        Ok("ready")
+        let health = state.service.registry().store_health();
+        Ok(Json(Readiness {
+            status: "ready".into(),
+            store: StoreState {
+                kind: health.kind.into(),
+                state: if health.up { "up" } else { "down" }.into(),
+                snapshot_age_seconds: health.snapshot_age.as_secs_f64(),
+            },
+        }))
     } else {
         Err(Error::Unavailable {
             detail: "starting or shutting down".into(),
@@ -82,38 +92,94 @@ pub async fn list_robots(
     }))
 }
 
-/// One robot's model, in the schema it was registered with.
+/// One robot's model, in the schema it was registered with, with its `ETag`
+/// (and, for registered robots, `Last-Modified`).
 #[utoipa::path(get, path = "/v1/robots/{name}", tag = "robots",
     params(("name" = String, Path, description = "Robot name")),
-    responses((status = 200, body = RobotSpec),
+    responses((status = 200, body = RobotSpec, headers(
+            ("ETag" = String, description = "Entity tag of this version (`\"17\"`; built-ins: `\"builtin-<hash>\"`): send it as `If-Match` to replace or delete only this version"),
+            ("Last-Modified" = String, description = "When this version was written (registered robots only)"))),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn get_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
-) -> ApiResult<Json<RobotSpec>> {
+) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
-    Ok(Json(entry.robot.spec().clone()))
+    let mut resp = Json(entry.robot.spec()).into_response();
+    version_headers(&mut resp, &entry);
+    Ok(resp)
 }
 
-fn created(name: &str, created: bool, spec: &RobotSpec) -> Response {
+/// Sets `ETag` and, for a stored version, `Last-Modified`.
+fn version_headers(resp: &mut Response, entry: &Entry) {
+    let h = resp.headers_mut();
+    if let Ok(v) = HeaderValue::from_str(entry.etag()) {
+        h.insert(header::ETAG, v);
+    }
+    if let Some(v) = entry
+        .version
+        .and_then(|v| HeaderValue::from_str(&httpdate::fmt_http_date(v.updated)).ok())
+    {
+        h.insert(header::LAST_MODIFIED, v);
+    }
+}
+
+fn header_str<'h>(headers: &'h HeaderMap, name: &str) -> Result<Option<&'h str>, Error> {
+    headers
+        .get(name)
+        .map(|v| {
+            v.to_str()
+                .map_err(|_| Error::malformed_field(name, "must be visible ASCII"))
+        })
+        .transpose()
+}
+
+/// The condition of a write from `If-Match` (`*` or entity tags) and, when
+/// `none_match_allowed` (PUT), `If-None-Match: *` (create only).
+fn write_condition(headers: &HeaderMap, none_match_allowed: bool) -> Result<Condition, Error> {
+    let if_match = header_str(headers, "If-Match")?;
+    let if_none_match = header_str(headers, "If-None-Match")?;
+    match (if_match, if_none_match) {
+        (Some(_), Some(_)) => Err(Error::malformed_field(
+            "If-None-Match",
+            "send either If-Match (replace this version) or If-None-Match: * (create only), not both",
+        )),
+        (Some(m), None) => Condition::if_match(m, "If-Match"),
+        (None, Some(n)) if none_match_allowed && n.trim() == "*" => Ok(Condition::Absent),
+        (None, Some(_)) => Err(Error::malformed_field(
+            "If-None-Match",
+            if none_match_allowed {
+                "only * is supported on a write (create only if the robot does not exist)"
+            } else {
+                "not supported on DELETE; use If-Match"
+            },
+        )),
+        (None, None) => Ok(Condition::Any),
+    }
+}
+
+fn created(name: &str, created: bool, entry: &Entry) -> Response {
     let status = if created {
         StatusCode::CREATED
     } else {
         StatusCode::OK
     };
-    let mut resp = (status, Json(spec)).into_response();
+    let mut resp = (status, Json(entry.robot.spec())).into_response();
     if created && let Ok(v) = HeaderValue::from_str(&format!("/v1/robots/{name}")) {
         resp.headers_mut().insert(header::LOCATION, v);
     }
+    version_headers(&mut resp, entry);
     resp
 }
 
-/// Registers a robot (201 with `Location`; 409 if the name is taken).
+/// Registers a robot (201 with `Location` and `ETag`; 409 if the name is taken).
 #[utoipa::path(post, path = "/v1/robots", tag = "robots", request_body = RobotSpec,
     security((), ("bearer" = [])),
-    responses((status = 201, body = RobotSpec, headers(("Location" = String))),
+    responses((status = 201, body = RobotSpec, headers(("Location" = String, description = "The robot's URL"),
+            ("ETag" = String, description = "Entity tag of the version written"),
+            ("Last-Modified" = String, description = "When it was written"))),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
         (status = 403, body = Problem, content_type = "application/problem+json"),
@@ -121,35 +187,47 @@ fn created(name: &str, created: bool, spec: &RobotSpec) -> Response {
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded, timed out, or the registry database is unavailable (Retry-After); nothing was changed, except that a write that timed out may have been committed (read it again)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn create_robot(
     State(state): State<AppState>,
     JsonBody(spec): JsonBody<RobotSpec>,
 ) -> ApiResult<Response> {
     let name = spec.name.clone();
-    state.service.register(spec, PutMode::Create).await?;
-    let entry = state.service.robot(&name)?;
-    Ok(created(&name, true, entry.robot.spec()))
+    let (entry, _) = state
+        .service
+        .register(spec, PutMode::Create, Condition::Any)
+        .await?;
+    Ok(created(&name, true, &entry))
 }
 
-/// Creates (201) or replaces (200) a registered robot; a `name` in the body must match the path.
+/// Creates (201) or replaces (200) a registered robot; a `name` in the body
+/// must match the path. `If-Match` replaces only that version (412 if it
+/// changed); `If-None-Match: *` only creates (412 if it exists).
 #[utoipa::path(put, path = "/v1/robots/{name}", tag = "robots", request_body = RobotSpec,
-    params(("name" = String, Path, description = "Robot name")),
+    params(("name" = String, Path, description = "Robot name"),
+        ("If-Match" = Option<String>, Header, description = "Replace only if the robot is at this version: its `ETag` (`\"17\"`), a list of them, or `*` (it must exist)"),
+        ("If-None-Match" = Option<String>, Header, description = "`*`: create only; 412 if the robot exists")),
     security((), ("bearer" = [])),
-    responses((status = 200, body = RobotSpec), (status = 201, body = RobotSpec),
+    responses((status = 200, body = RobotSpec, headers(("ETag" = String, description = "Entity tag of the version written"),
+            ("Last-Modified" = String, description = "When it was written"))),
+        (status = 201, body = RobotSpec, headers(("Location" = String, description = "The robot's URL"),
+            ("ETag" = String, description = "Entity tag of the version written"),
+            ("Last-Modified" = String, description = "When it was written"))),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 401, body = Problem, content_type = "application/problem+json"),
         (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
+        (status = 412, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded, timed out, or the registry database is unavailable (Retry-After); nothing was changed, except that a write that timed out may have been committed (read it again)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn put_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    headers: HeaderMap,
     JsonBody(spec): JsonBody<RobotSpec>,
 ) -> ApiResult<Response> {
     if spec.name != name {
@@ -162,14 +240,16 @@ pub async fn put_robot(
         )
         .into());
     }
-    let was_created = state.service.register(spec, PutMode::Upsert).await?;
-    let entry = state.service.robot(&name)?;
-    Ok(created(&name, was_created, entry.robot.spec()))
+    let cond = write_condition(&headers, true)?;
+    let (entry, was_created) = state.service.register(spec, PutMode::Upsert, cond).await?;
+    Ok(created(&name, was_created, &entry))
 }
 
 /// Deletes a registered robot (204); built-ins are read-only (409).
+/// `If-Match` deletes only that version (412 if it changed).
 #[utoipa::path(delete, path = "/v1/robots/{name}", tag = "robots",
-    params(("name" = String, Path, description = "Robot name")),
+    params(("name" = String, Path, description = "Robot name"),
+        ("If-Match" = Option<String>, Header, description = "Delete only if the robot is at this version: its `ETag` (`\"17\"`), a list of them, or `*`")),
     security((), ("bearer" = [])),
     responses((status = 204, description = "Deleted"),
         (status = 400, body = Problem, content_type = "application/problem+json"),
@@ -177,13 +257,16 @@ pub async fn put_robot(
         (status = 403, body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 412, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded, timed out, or the registry database is unavailable (Retry-After); nothing was changed, except that a write that timed out may have been committed (read it again)", body = Problem, content_type = "application/problem+json"),
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn delete_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    headers: HeaderMap,
 ) -> ApiResult<StatusCode> {
-    state.service.delete(&name).await?;
+    let cond = write_condition(&headers, false)?;
+    state.service.delete(&name, cond).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 

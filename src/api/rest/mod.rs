@@ -128,6 +128,8 @@ pub struct ApiDoc;
     example = "# HELP kinserve_robots Robots in the registry, by source.\n# TYPE kinserve_robots gauge\nkinserve_robots{source=\"builtin\"} 19\n")))]
 async fn metrics_text(State(state): State<AppState>) -> Response {
     crate::telemetry::update_process_metrics();
+    let store = state.service.registry().store_health();
+    crate::telemetry::record_store_health(store.kind, store.up, store.snapshot_age);
     (
         [(
             header::CONTENT_TYPE,
@@ -298,6 +300,7 @@ fn status_label(code: u16) -> SharedString {
         (404, "404"),
         (405, "405"),
         (409, "409"),
+        (412, "412"),
         (413, "413"),
         (415, "415"),
         (422, "422"),
@@ -360,10 +363,14 @@ fn cors(origins: &[String]) -> CorsLayer {
         .allow_headers([
             header::CONTENT_TYPE,
             header::AUTHORIZATION,
+            header::IF_MATCH,
+            header::IF_NONE_MATCH,
             header::HeaderName::from_static("x-request-id"),
         ])
         .expose_headers([
             header::LOCATION,
+            header::ETAG,
+            header::LAST_MODIFIED,
             header::HeaderName::from_static("x-request-id"),
             header::RETRY_AFTER,
         ]);

@@ -108,6 +108,9 @@ pub fn describe(code: &str) -> &'static str {
         }
         "404" => "No robot of that name (the nearest names are suggested) or no such route.",
         "409" => "Conflict: the name is taken, or the robot is built in and read-only.",
+        "412" => {
+            "Precondition failed: `If-Match` names another version (or the robot is gone), or `If-None-Match: *` found it; nothing was changed."
+        }
         "413" => "Too large: the body or the batch is over its limit.",
         "415" => "Unsupported media type: send `application/json`.",
         "426" => "The connection cannot be upgraded to a WebSocket.",
@@ -115,7 +118,9 @@ pub fn describe(code: &str) -> &'static str {
             "Invalid input: the body reads but breaks a rule (invalid model, wrong joint count, value outside the limits); every broken rule is listed."
         }
         "500" => "A bug: the handler failed; the server goes on.",
-        "503" => "Overloaded (retry after `Retry-After`), timed out, starting or shutting down.",
+        "503" => {
+            "Overloaded (retry after `Retry-After`), timed out, starting or shutting down, or (writes) the registry database is unavailable."
+        }
         "507" => {
             "Storage failure (nothing changed), or the registry holds --max-robots registered robots."
         }
@@ -137,6 +142,10 @@ fn problem_example(code: &str) -> Option<Value> {
         },
         "409" => Error::AlreadyExists {
             name: "my-arm".into(),
+        },
+        "412" => Error::PreconditionFailed {
+            name: "my-arm".into(),
+            detail: "the ETag given does not match; its current ETag is \"18\": read it again (GET) and retry with its ETag".into(),
         },
         "413" => Error::TooLarge {
             detail: "a batch holds at most 10000 configurations, got 20000".into(),

@@ -104,6 +104,16 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             "ik-not-converged",
             "Inverse kinematics did not converge",
         ),
+        Error::PreconditionFailed { .. } => (
+            StatusCode::PRECONDITION_FAILED,
+            "precondition-failed",
+            "Precondition failed",
+        ),
+        Error::StoreUnavailable { .. } => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "store-unavailable",
+            "Registry store unavailable",
+        ),
         Error::Internal { .. } => (
             StatusCode::INTERNAL_SERVER_ERROR,
             "internal",
@@ -196,6 +206,9 @@ impl IntoResponse for ApiError {
             }
             Error::Overloaded | Error::Unavailable { .. } => {
                 h.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            }
+            Error::StoreUnavailable { .. } => {
+                h.insert(header::RETRY_AFTER, HeaderValue::from_static("2"));
             }
             _ => {}
         }

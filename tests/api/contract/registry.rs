@@ -223,6 +223,7 @@ async fn bad_models_are_rejected_alike_over_rest_and_grpc() {
             c.register_robot(pb::RegisterRobotRequest {
                 robot: Some(model_to_pb(&model)),
                 replace: false,
+                ..Default::default()
             })
             .await,
         );
@@ -247,6 +248,7 @@ async fn bad_models_are_rejected_alike_over_rest_and_grpc() {
     c.register_robot(pb::RegisterRobotRequest {
         robot: Some(model_to_pb(&planar_model("fine_grpc"))),
         replace: false,
+        ..Default::default()
     })
     .await
     .unwrap();
@@ -270,6 +272,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
         c.register_robot(pb::RegisterRobotRequest {
             robot: Some(model_to_pb(&planar_model("taken"))),
             replace: false,
+            ..Default::default()
         })
         .await,
     );
@@ -282,6 +285,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
         c.register_robot(pb::RegisterRobotRequest {
             robot: Some(model_to_pb(&planar_model("puma560"))),
             replace: false,
+            ..Default::default()
         })
         .await,
     );
@@ -300,6 +304,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
         c.register_robot(pb::RegisterRobotRequest {
             robot: Some(model_to_pb(&planar_model("puma560"))),
             replace: true,
+            ..Default::default()
         })
         .await,
     );
@@ -316,6 +321,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
     let grpc = grpc_outcome(
         c.delete_robot(pb::DeleteRobotRequest {
             name: "panda".into(),
+            ..Default::default()
         })
         .await,
     );
@@ -334,6 +340,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
     let grpc = grpc_outcome(
         c.delete_robot(pb::DeleteRobotRequest {
             name: "ghost".into(),
+            ..Default::default()
         })
         .await,
     );
@@ -434,6 +441,7 @@ async fn auth_and_size_limits_have_the_same_class_over_rest_and_grpc() {
         let mut req = tonic::Request::new(pb::RegisterRobotRequest {
             robot: Some(model_to_pb(&planar_model("guarded"))),
             replace: false,
+            ..Default::default()
         });
         if let Some(t) = token {
             req.metadata_mut()
@@ -455,6 +463,7 @@ async fn auth_and_size_limits_have_the_same_class_over_rest_and_grpc() {
     let grpc = grpc_outcome(
         c.delete_robot(pb::DeleteRobotRequest {
             name: "puma560".into(),
+            ..Default::default()
         })
         .await,
     );

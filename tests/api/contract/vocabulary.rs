@@ -25,6 +25,7 @@ async fn a_link_without_alpha_is_refused_over_rest_and_grpc_naming_it() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(robot),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err();

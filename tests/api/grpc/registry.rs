@@ -94,6 +94,7 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(planar_pb("arm")),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap()
@@ -106,6 +107,7 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(planar_pb("arm")),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err();
@@ -118,6 +120,7 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(longer),
             replace: true,
+            ..Default::default()
         })
         .await
         .unwrap()
@@ -154,15 +157,19 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(planar_pb("arm2")),
             replace: true,
+            ..Default::default()
         })
         .await
         .unwrap()
         .into_inner();
     assert!(r.created, "replace of an absent robot creates it");
 
-    c.delete_robot(pb::DeleteRobotRequest { name: "arm".into() })
-        .await
-        .unwrap();
+    c.delete_robot(pb::DeleteRobotRequest {
+        name: "arm".into(),
+        ..Default::default()
+    })
+    .await
+    .unwrap();
     let err = c
         .get_robot(pb::GetRobotRequest { name: "arm".into() })
         .await
@@ -173,7 +180,10 @@ async fn register_replace_get_fk_and_delete_a_robot() {
         .unwrap_err();
     assert_eq!(err.code(), Code::NotFound);
     let err = c
-        .delete_robot(pb::DeleteRobotRequest { name: "arm".into() })
+        .delete_robot(pb::DeleteRobotRequest {
+            name: "arm".into(),
+            ..Default::default()
+        })
         .await
         .unwrap_err();
     assert_eq!(err.code(), Code::NotFound, "second delete: {err:?}");
@@ -186,6 +196,7 @@ async fn builtins_are_read_only_failed_precondition() {
     let err = c
         .delete_robot(pb::DeleteRobotRequest {
             name: "puma560".into(),
+            ..Default::default()
         })
         .await
         .unwrap_err();
@@ -195,6 +206,7 @@ async fn builtins_are_read_only_failed_precondition() {
             .register_robot(pb::RegisterRobotRequest {
                 robot: Some(planar_pb("puma560")),
                 replace,
+                ..Default::default()
             })
             .await
             .unwrap_err();
@@ -223,6 +235,7 @@ async fn invalid_models_are_invalid_argument_with_field_paths() {
         c.register_robot(pb::RegisterRobotRequest {
             robot,
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err()
@@ -292,6 +305,7 @@ async fn register_and_delete_need_the_bearer_token_when_one_is_set() {
     let reg = || pb::RegisterRobotRequest {
         robot: Some(planar_pb("guarded")),
         replace: false,
+        ..Default::default()
     };
 
     let err = c.register_robot(reg()).await.unwrap_err();
@@ -305,6 +319,7 @@ async fn register_and_delete_need_the_bearer_token_when_one_is_set() {
         .register_robot(pb::RegisterRobotRequest {
             robot: None,
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err();
@@ -332,6 +347,7 @@ async fn register_and_delete_need_the_bearer_token_when_one_is_set() {
 
     let del = || pb::DeleteRobotRequest {
         name: "guarded".into(),
+        ..Default::default()
     };
     let err = c.delete_robot(del()).await.unwrap_err();
     assert_eq!(err.code(), Code::Unauthenticated);
@@ -355,6 +371,7 @@ async fn without_a_token_register_and_delete_are_open() {
         pb::RegisterRobotRequest {
             robot: Some(planar_pb("open")),
             replace: false,
+            ..Default::default()
         },
         "Bearer whatever",
     ))
@@ -362,6 +379,7 @@ async fn without_a_token_register_and_delete_are_open() {
     .unwrap();
     c.delete_robot(pb::DeleteRobotRequest {
         name: "open".into(),
+        ..Default::default()
     })
     .await
     .unwrap();
@@ -378,6 +396,7 @@ async fn a_robot_registered_over_grpc_is_visible_over_rest_at_once() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(model.clone()),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap()
@@ -439,6 +458,7 @@ async fn a_robot_registered_over_grpc_is_visible_over_rest_at_once() {
     // Deleted over gRPC: gone over REST.
     c.delete_robot(pb::DeleteRobotRequest {
         name: "rich".into(),
+        ..Default::default()
     })
     .await
     .unwrap();
@@ -487,6 +507,7 @@ async fn a_robot_registered_over_rest_is_visible_over_grpc_at_once() {
         .register_robot(pb::RegisterRobotRequest {
             robot: Some(planar_pb("viarest")),
             replace: false,
+            ..Default::default()
         })
         .await
         .unwrap_err();

@@ -13,6 +13,7 @@ pub(crate) mod grpc;
 pub(crate) mod http;
 pub(crate) mod models;
 pub(crate) mod pose;
+pub(crate) mod postgres;
 pub(crate) mod process;
 pub(crate) mod ws;
 
@@ -24,5 +25,6 @@ pub(crate) use grpc::*;
 pub(crate) use http::*;
 pub(crate) use models::*;
 pub(crate) use pose::*;
+pub(crate) use postgres::*;
 pub(crate) use process::*;
 pub(crate) use ws::*;

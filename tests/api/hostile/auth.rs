@@ -92,6 +92,7 @@ async fn every_mutation_needs_the_token_and_reads_leak_nothing() {
                 pb::RegisterRobotRequest {
                     robot: None,
                     replace: true,
+                    ..Default::default()
                 },
             ))
             .await
@@ -102,6 +103,7 @@ async fn every_mutation_needs_the_token_and_reads_leak_nothing() {
                 auth,
                 pb::DeleteRobotRequest {
                     name: "puma560".into(),
+                    ..Default::default()
                 },
             ))
             .await
@@ -240,6 +242,7 @@ async fn the_token_never_appears_in_the_logs() {
             .unwrap();
         let mut req = tonic::Request::new(pb::DeleteRobotRequest {
             name: "nothing".into(),
+            ..Default::default()
         });
         req.metadata_mut()
             .insert("authorization", auth.parse().unwrap());

@@ -231,6 +231,7 @@ async fn run_grpc_case(
             c.register_robot(pb::RegisterRobotRequest {
                 robot,
                 replace: false,
+                ..Default::default()
             })
             .await
             .map(drop)
@@ -244,6 +245,7 @@ async fn run_grpc_case(
         "delete" => c
             .delete_robot(pb::DeleteRobotRequest {
                 name: case["name"].as_str().unwrap().to_owned(),
+                ..Default::default()
             })
             .await
             .map(drop),
