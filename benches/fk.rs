@@ -1,5 +1,8 @@
-//! FK speed: single 6-DoF pose (fast path, portable fallback, plain product)
-//! and a batch of 10,000 poses. Run with `cargo bench --bench fk`.
+//! FK speed: single pose (best kernel, each kernel, plain product), single pose
+//! with every frame, and a batch of 10,000 poses (best kernel, each kernel), for
+//! PUMA 560 and UR5e (6R, standard DH) and Panda (7R + flange, modified DH).
+//! Run with `cargo bench --bench fk`; ids are `single/ROBOT/...` and
+//! `batch10k/ROBOT/...`, where `fast`/`simd` is the kernel `Kernel::best` picks.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -27,19 +30,36 @@ fn configs(n: usize, dof: usize) -> Vec<f64> {
         .collect()
 }
 
+const ROBOTS: [&str; 3] = ["puma560", "ur5e", "panda"];
+
+/// Every kernel this CPU can run, by name.
+fn kernels() -> impl Iterator<Item = Kernel> {
+    Kernel::ALL.into_iter().filter(|k| k.is_supported())
+}
+
 fn single(c: &mut Criterion) {
-    for name in ["puma560", "panda"] {
+    eprintln!("kernel picked at run time: {}", Kernel::best().name());
+    for name in ROBOTS {
         let r = robot(name);
         let chain = r.chain();
         let q = configs(1, r.dof());
         let mut g = c.benchmark_group(format!("single/{name}"));
         g.bench_function("fast", |b| b.iter(|| chain.forward(black_box(&q), 1.0)));
+        for k in kernels() {
+            g.bench_function(k.name(), |b| {
+                b.iter(|| chain.forward_with(k, black_box(&q), 1.0))
+            });
+        }
         g.bench_function("frames", |b| {
             b.iter(|| {
                 chain.forward_frames_into(black_box(&q), 1.0, &mut |t| {
                     black_box(t);
                 })
             })
+        });
+        let mut frames = vec![Transform::IDENTITY; chain.rows() + 1];
+        g.bench_function("frames_to_slice", |b| {
+            b.iter(|| chain.forward_frames_to(black_box(&q), 1.0, &mut frames))
         });
         g.bench_function("plain_product", |b| {
             b.iter(|| forward_reference(chain, black_box(&q), 1.0))
@@ -50,7 +70,7 @@ fn single(c: &mut Criterion) {
 
 fn batch(c: &mut Criterion) {
     const N: usize = 10_000;
-    for name in ["puma560", "panda"] {
+    for name in ROBOTS {
         let r = robot(name);
         let chain = r.chain();
         let q = configs(N, r.dof());
@@ -60,9 +80,11 @@ fn batch(c: &mut Criterion) {
         g.bench_function("simd", |b| {
             b.iter(|| chain.forward_batch(black_box(&q), 1.0, &mut out))
         });
-        g.bench_function("portable", |b| {
-            b.iter(|| chain.forward_batch_with(Kernel::Portable, black_box(&q), 1.0, &mut out))
-        });
+        for k in kernels() {
+            g.bench_function(k.name(), |b| {
+                b.iter(|| chain.forward_batch_with(k, black_box(&q), 1.0, &mut out))
+            });
+        }
         g.finish();
     }
 }

@@ -5,8 +5,9 @@
 #   FUZZ_SECONDS=300 scripts/fuzz.sh model
 #
 # Targets: `model` (robot model parsing + validation + FK at in-limit
-# configurations) and `fk_request` (REST single/batch FK bodies and the
-# WebSocket message, decoded and evaluated). The properties they check live in
+# configurations), `fk_request` (REST single/batch FK bodies and the
+# WebSocket message, decoded and evaluated) and `ik_request` (REST single/batch
+# IK bodies and the WebSocket `ik` message, validated and solved). The properties they check live in
 # `kinserve_testkit::fuzzing` (crates/kinserve-testkit/src/fuzzing.rs).
 #
 # Corpus: fuzz/corpus/<target>/ (kept small and commit-worthy: minimised with
@@ -35,7 +36,7 @@ FUZZ_JOBS=${FUZZ_JOBS:-1}
 FUZZ_CORPUS_MAX=${FUZZ_CORPUS_MAX:-400}
 FUZZ_SANITIZER=${FUZZ_SANITIZER:-address}
 MAX_LEN=65536
-ALL_TARGETS=(model fk_request)
+ALL_TARGETS=(model fk_request ik_request)
 if [ $# -gt 0 ]; then targets=("$@"); else targets=("${ALL_TARGETS[@]}"); fi
 
 export RUSTC_BOOTSTRAP=1

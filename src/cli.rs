@@ -1,5 +1,5 @@
 //! The `kinserve` command line: `serve` (default), `validate`, `fk`,
-//! `closed-form`, `urdf`, `healthcheck`.
+//! `jacobian`, `ik`, `closed-form`, `urdf`, `bench` (in [`crate::bench`]), `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -7,12 +7,15 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
+use crate::api::velocity::{IkItem, IkOutput, JacobianItem, JacobianOutput};
 use crate::config::{
-    Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, ModelArgs, ServeConfig,
+    Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, FrameArg, IkArgs, JacobianArgs,
+    ModelArgs, ServeConfig,
 };
 use crate::error::Error;
 use crate::model::{
-    AngleUnit, ClosedForm, FkOptions, ModelLimits, Robot, load_robot_file, to_urdf,
+    AngleUnit, ClosedForm, FkOptions, IkSpec, IkTargetSpec, ModelLimits, QuaternionSpec,
+    ReferenceFrame, Robot, load_robot_file, to_urdf,
 };
 use crate::registry::builtin;
 
@@ -23,8 +26,14 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Serve(c)) => serve(*c),
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
+        Some(Command::Jacobian(args)) => jacobian(&args),
+        Some(Command::Ik(args)) => ik(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
+        Some(Command::Bench(args)) => match load_model(&args.which) {
+            Ok(robot) => crate::bench::run(&robot, &args),
+            Err(code) => code,
+        },
         Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
     }
 }
@@ -141,6 +150,135 @@ fn fk(args: &FkArgs) -> ExitCode {
             print_error("--joints", &e.into());
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Prints `value` as pretty JSON; `code` if that worked.
+fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
+    match serde_json::to_string_pretty(value) {
+        Ok(s) => {
+            println!("{s}");
+            code
+        }
+        Err(e) => {
+            eprintln!("cannot print the result: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn jacobian(args: &JacobianArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let unit = if args.deg {
+        AngleUnit::Deg
+    } else {
+        AngleUnit::Rad
+    };
+    let frame = match args.frame {
+        FrameArg::Base => ReferenceFrame::Base,
+        FrameArg::Tool => ReferenceFrame::Tool,
+    };
+    let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
+    match robot.check_joints(&args.joints, &opts) {
+        Ok(q) => {
+            let out = JacobianOutput {
+                robot: robot.name().to_string(),
+                length_unit: robot.length_unit(),
+                result: JacobianItem::from(&q.jacobian(frame)),
+            };
+            print_json(&out, ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            print_error("--joints", &e.into());
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The IK request the flags describe (shape errors of the flags printed).
+fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
+    let matrix = match args.matrix.as_deref() {
+        None => None,
+        Some(v) => match <[f64; 16]>::try_from(v) {
+            Ok(m) => Some(std::array::from_fn(|i| {
+                std::array::from_fn(|j| m[i * 4 + j])
+            })),
+            Err(_) => {
+                eprintln!("--matrix: give 16 values (row-major 4x4), got {}", v.len());
+                return None;
+            }
+        },
+    };
+    let position = match args.position.as_deref() {
+        None => None,
+        Some(v) => match <[f64; 3]>::try_from(v) {
+            Ok(p) => Some(p),
+            Err(_) => {
+                eprintln!("--position: give x,y,z, got {} values", v.len());
+                return None;
+            }
+        },
+    };
+    let quaternion = match args.quaternion.as_deref() {
+        None => None,
+        Some(&[w, x, y, z]) => Some(QuaternionSpec { w, x, y, z }),
+        Some(v) => {
+            eprintln!("--quaternion: give w,x,y,z, got {} values", v.len());
+            return None;
+        }
+    };
+    Some(IkSpec {
+        target: IkTargetSpec {
+            matrix,
+            position,
+            quaternion,
+        },
+        seed: args.seed.clone(),
+        angle_unit: if args.deg {
+            AngleUnit::Deg
+        } else {
+            AngleUnit::Rad
+        },
+        position_only: args.position_only,
+        tolerance: args.tolerance,
+        max_iterations: args.max_iterations,
+        restarts: args.restarts,
+    })
+}
+
+fn ik(args: &IkArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let Some(spec) = ik_spec(args) else {
+        return ExitCode::FAILURE;
+    };
+    let request = match robot.check_ik(&spec) {
+        Ok(r) => r,
+        Err(e) => {
+            print_error("ik", &e.into());
+            return ExitCode::FAILURE;
+        }
+    };
+    let answer = request.solve(Some(std::time::Instant::now() + args.time_limit));
+    let out = IkOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        angle_unit: spec.angle_unit,
+        result: IkItem::from(&answer),
+    };
+    if answer.converged {
+        print_json(&out, ExitCode::SUCCESS)
+    } else {
+        eprintln!(
+            "ik: {}",
+            Error::ik_not_converged(answer, robot.length_unit().as_str())
+        );
+        print_json(&out, ExitCode::FAILURE)
     }
 }
 

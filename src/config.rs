@@ -33,11 +33,20 @@ pub enum Command {
     },
     /// Compute FK once and print it as JSON (the REST API's `fk` response).
     Fk(FkArgs),
+    /// Compute the geometric Jacobian once and print it as JSON (the REST
+    /// API's `jacobian` response).
+    Jacobian(JacobianArgs),
+    /// Solve inverse kinematics once and print the answer as JSON (the REST
+    /// API's `ik` response); exits 1 (printing the best attempt) if the
+    /// target is not reached within the tolerance.
+    Ik(IkArgs),
     /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
     /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
     ClosedForm(ClosedFormArgs),
     /// Print a robot as URDF (metres, radians; the REST API's `urdf` response).
     Urdf(ModelArgs),
+    /// Time FK of a model on this machine: single pose, with every frame, batched.
+    Bench(BenchArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
     /// Used as the container HEALTHCHECK (the image has no curl).
     Healthcheck {
@@ -86,6 +95,80 @@ pub struct FkArgs {
     pub robots_dir: Option<PathBuf>,
 }
 
+/// Arguments of `kinserve jacobian`.
+#[derive(Debug, Args)]
+pub struct JacobianArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Joint values, comma separated: rad (or deg with --deg) for revolute, model length unit for prismatic.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub joints: Vec<f64>,
+    /// Revolute joint values are in degrees (the Jacobian's columns stay per rad).
+    #[arg(long)]
+    pub deg: bool,
+    /// Do not check joint limits.
+    #[arg(long)]
+    pub no_limits: bool,
+    /// Frame of the Jacobian's rows.
+    #[arg(long, value_enum, default_value_t = FrameArg::Base)]
+    pub frame: FrameArg,
+}
+
+/// Frame of a Jacobian's rows on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FrameArg {
+    /// The world frame FK poses are given in.
+    Base,
+    /// The tool frame.
+    Tool,
+}
+
+/// Arguments of `kinserve ik`: a target as `--matrix` or `--position`
+/// (with `--quaternion` unless `--position-only`).
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("target").required(true).args(["matrix", "position"])))]
+pub struct IkArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Target as a homogeneous 4×4 matrix: 16 values, row-major, comma separated.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub matrix: Option<Vec<f64>>,
+    /// Target position x,y,z in the robot's length unit.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub position: Option<Vec<f64>>,
+    /// Target orientation as a quaternion w,x,y,z.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub quaternion: Option<Vec<f64>>,
+    /// Start configuration, comma separated, in the answer's angle unit.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub seed: Option<Vec<f64>>,
+    /// Seed and answer in degrees.
+    #[arg(long)]
+    pub deg: bool,
+    /// Match the position only.
+    #[arg(long)]
+    pub position_only: bool,
+    /// Tolerance: length unit (position) and rad (orientation); default 1e-9.
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Iterations per attempt (default 100).
+    #[arg(long)]
+    pub max_iterations: Option<u32>,
+    /// Restarts after a stalled attempt (default 100).
+    #[arg(long)]
+    pub restarts: Option<u32>,
+    /// Give up after this long, answering the best attempt.
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    pub time_limit: Duration,
+}
+
 pub use crate::telemetry::LogFormat;
 
 /// Which robot a command works on: a built-in by name or a model file.
@@ -125,6 +208,28 @@ pub enum ClosedFormFormat {
     Latex,
     /// ⁰Tₙ as presentation MathML.
     Mathml,
+}
+
+/// Arguments of `kinserve bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Configurations in the batch figure.
+    #[arg(long, default_value_t = 10_000, value_parser = parse_batch)]
+    pub batch: usize,
+    /// Print `{"robot", "simd", "single_ns", "frames_ns", "batch_ns_per_pose"}` (ns) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `--batch` of `kinserve bench`: 1 to 1,000,000 configurations.
+fn parse_batch(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n @ 1..=1_000_000) => Ok(n),
+        _ => Err(format!("not a batch size from 1 to 1000000: '{s}'")),
+    }
 }
 
 /// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.
@@ -201,6 +306,9 @@ pub struct ServeConfig {
     /// Most configurations in one batch request.
     #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
     pub max_batch: usize,
+    /// Most registered robots (built-ins not counted); registering one more is 507.
+    #[arg(long, env = "KINSERVE_MAX_ROBOTS", default_value_t = 1000)]
+    pub max_robots: usize,
     /// Most movable joints in a model.
     #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS)]
     pub max_joints: usize,
@@ -228,6 +336,10 @@ pub struct ServeConfig {
     /// How long shutdown waits for in-flight requests before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
+    /// Longest time one IK solve may take; past it the best attempt is
+    /// answered (not converged). An IK batch may take half the request timeout.
+    #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_duration)]
+    pub ik_time_limit: Duration,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -245,6 +357,7 @@ impl std::fmt::Debug for ServeConfig {
             log_format,
             access_log,
             max_batch,
+            max_robots,
             max_joints,
             max_links,
             max_body_bytes,
@@ -254,6 +367,7 @@ impl std::fmt::Debug for ServeConfig {
             header_timeout,
             stream_idle_timeout,
             shutdown_timeout,
+            ik_time_limit,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -268,6 +382,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("log_format", log_format)
             .field("access_log", access_log)
             .field("max_batch", max_batch)
+            .field("max_robots", max_robots)
             .field("max_joints", max_joints)
             .field("max_links", max_links)
             .field("max_body_bytes", max_body_bytes)
@@ -277,6 +392,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("header_timeout", header_timeout)
             .field("stream_idle_timeout", stream_idle_timeout)
             .field("shutdown_timeout", shutdown_timeout)
+            .field("ik_time_limit", ik_time_limit)
             .finish()
     }
 }
@@ -311,6 +427,7 @@ impl ServeConfig {
             log_format: LogFormat::Human,
             access_log: true,
             max_batch: 10_000,
+            max_robots: 1000,
             max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
             max_links: ModelLimits::DEFAULT_MAX_LINKS,
             max_body_bytes: 1 << 20,
@@ -320,6 +437,7 @@ impl ServeConfig {
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
             shutdown_timeout: Duration::from_secs(10),
+            ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
     }
 
@@ -353,6 +471,8 @@ impl ServeConfig {
                 max_links: self.max_links,
             },
             max_batch: self.max_batch,
+            ik_time_limit: self.ik_time_limit,
+            ik_batch_time_limit: self.request_timeout / 2,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! (`api::grpc::status`), each in one exhaustive `match`.
 
 pub use kinserve_model::FieldViolation;
-use kinserve_model::{ModelError, summary};
+use kinserve_model::{IkAnswer, ModelError, summary};
 
 /// Everything that can go wrong in kinserve, by what the client should do about it.
 #[derive(Debug, thiserror::Error)]
@@ -52,6 +52,20 @@ pub enum Error {
         /// The built-in robot's name.
         name: String,
     },
+    /// Refused by policy whatever the token, e.g. a registry write from a web
+    /// page of another origin (HTTP 403, gRPC PERMISSION_DENIED).
+    #[error("forbidden: {detail}")]
+    Forbidden {
+        /// Why, and how to allow it.
+        detail: String,
+    },
+    /// The registry holds as many registered robots as it may (HTTP 507,
+    /// gRPC RESOURCE_EXHAUSTED).
+    #[error("registry full: {detail}")]
+    Full {
+        /// The limit and how to make room.
+        detail: String,
+    },
     /// Missing or wrong bearer token (HTTP 401, gRPC UNAUTHENTICATED).
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -84,6 +98,17 @@ pub enum Error {
     Storage {
         /// What failed (no secrets, no absolute paths of the host beyond the data dir).
         detail: String,
+    },
+    /// Inverse kinematics found no configuration within the tolerance: the
+    /// target is out of reach, out of the joint limits, or the time cap cut
+    /// the solve short (HTTP 422 `ik-not-converged` with the best attempt;
+    /// gRPC FAILED_PRECONDITION with the best attempt in the details).
+    #[error("inverse kinematics did not converge: {detail}")]
+    IkNotConverged {
+        /// The best attempt's errors, in words.
+        detail: String,
+        /// The best attempt (joints in the request's angle unit, within limits).
+        best: Box<IkAnswer>,
     },
     /// A conditional write whose condition does not hold: `If-Match` names
     /// another version (or the robot is gone), or `If-None-Match: *` finds it
@@ -152,6 +177,24 @@ impl Error {
                 }
             }
             other => other,
+        }
+    }
+}
+
+impl Error {
+    /// An [`Error::IkNotConverged`] carrying `best`; `length_unit` names the
+    /// unit of its position error.
+    pub fn ik_not_converged(best: IkAnswer, length_unit: &str) -> Self {
+        let orientation = best
+            .orientation_error
+            .map(|e| format!(", orientation error {e:.3e} rad"))
+            .unwrap_or_default();
+        Error::IkNotConverged {
+            detail: format!(
+                "best attempt has position error {:.3e} {length_unit}{orientation} after {} iterations",
+                best.position_error, best.iterations
+            ),
+            best: Box::new(best),
         }
     }
 }

@@ -14,6 +14,7 @@
 //! `kinserve-load` and `kinserve-testkit`).
 
 pub mod api;
+pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod error;

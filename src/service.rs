@@ -3,12 +3,16 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use subtle::ConstantTimeEq;
 
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
-use crate::model::{ClosedForm, FkOptions, LengthUnit, ModelLimits, Robot, RobotSpec};
+use crate::model::{
+    ClosedForm, FkOptions, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, LengthUnit, ModelLimits,
+    ReferenceFrame, Robot, RobotSpec,
+};
 use crate::registry::{Condition, Entry, Origin, PutMode, Registry};
 
 /// Limits the service enforces on requests.
@@ -16,8 +20,19 @@ use crate::registry::{Condition, Entry, Origin, PutMode, Registry};
 pub struct ServiceLimits {
     /// Model size limits.
     pub model: ModelLimits,
-    /// Most configurations in one batch request (default 10,000).
+    /// Most configurations (or IK targets) in one batch request (default 10,000).
     pub max_batch: usize,
+    /// Longest time one IK solve may take (default 50 ms); past it the best
+    /// attempt so far is answered.
+    pub ik_time_limit: Duration,
+    /// Longest time one IK batch may take (default 15 s, half the default
+    /// request timeout); targets left when it runs out are answered unsolved.
+    pub ik_batch_time_limit: Duration,
+}
+
+impl ServiceLimits {
+    /// Default of [`ServiceLimits::ik_time_limit`].
+    pub const DEFAULT_IK_TIME_LIMIT: Duration = Duration::from_millis(50);
 }
 
 impl Default for ServiceLimits {
@@ -25,6 +40,8 @@ impl Default for ServiceLimits {
         Self {
             model: ModelLimits::default(),
             max_batch: 10_000,
+            ik_time_limit: Self::DEFAULT_IK_TIME_LIMIT,
+            ik_batch_time_limit: Duration::from_secs(15),
         }
     }
 }
@@ -389,6 +406,117 @@ impl Service {
             .check_batch(&configs.values, &configs.lens, opts)?
             .fk();
         Ok(out)
+    }
+}
+
+/// Velocity and inverse kinematics: the Jacobian (cheap, on the caller's
+/// thread) and IK (up to [`ServiceLimits::ik_time_limit`] per target, so the
+/// async front doors run it through [`Service::ik_blocking`]).
+impl Service {
+    /// Checked Jacobian of one configuration in `frame`, with its measures.
+    pub fn jacobian(
+        &self,
+        robot: &Robot,
+        q: &[f64],
+        opts: &FkOptions,
+        frame: ReferenceFrame,
+    ) -> Result<JacobianAnswer> {
+        Ok(robot.check_joints(q, opts)?.jacobian(frame))
+    }
+
+    /// Checked Jacobians of many configurations, in request order; one bad
+    /// configuration fails the batch, naming it (`configurations[17][2]`).
+    pub fn jacobian_batch(
+        &self,
+        robot: &Robot,
+        configs: &Configurations,
+        opts: &FkOptions,
+        frame: ReferenceFrame,
+    ) -> Result<Vec<JacobianAnswer>> {
+        self.check_batch_size(configs.len())?;
+        robot.check_batch(&configs.values, &configs.lens, opts)?;
+        let mut out = Vec::with_capacity(configs.len());
+        let mut offset = 0;
+        for &len in &configs.lens {
+            let q = configs
+                .values
+                .get(offset..offset + len as usize)
+                .unwrap_or(&[]);
+            out.push(robot.check_joints(q, opts)?.jacobian(frame));
+            offset += len as usize;
+        }
+        Ok(out)
+    }
+
+    /// Validates and solves one IK request on this thread (up to
+    /// [`ServiceLimits::ik_time_limit`]). Not converged is
+    /// [`Error::IkNotConverged`] carrying the best attempt.
+    pub fn ik(&self, robot: &Robot, spec: &IkSpec) -> Result<IkAnswer> {
+        let request = robot.check_ik(spec)?;
+        let answer = request.solve(Some(Instant::now() + self.limits.ik_time_limit));
+        metrics::counter!("kinserve_ik_solves_total", "converged" => if answer.converged { "true" } else { "false" }).increment(1);
+        if answer.converged {
+            Ok(answer)
+        } else {
+            Err(Error::ik_not_converged(
+                answer,
+                robot.length_unit().as_str(),
+            ))
+        }
+    }
+
+    /// Validates and solves an IK batch on this thread: every target
+    /// answered in order, converged or not (see [`IkBatch::solve`](crate::model::IkBatch::solve)).
+    pub fn ik_batch(&self, robot: &Robot, spec: &IkBatchSpec) -> Result<Vec<IkAnswer>> {
+        self.check_batch_size(spec.targets.len())
+            .map_err(|_| self.targets_too_large(spec.targets.len()))?;
+        let batch = robot.check_ik_batch(spec)?;
+        let deadline = Instant::now() + self.limits.ik_batch_time_limit;
+        let answers = batch.solve(self.limits.ik_time_limit, deadline);
+        let converged = answers.iter().filter(|a| a.converged).count() as u64;
+        metrics::counter!("kinserve_ik_solves_total", "converged" => "true").increment(converged);
+        metrics::counter!("kinserve_ik_solves_total", "converged" => "false")
+            .increment(answers.len() as u64 - converged);
+        Ok(answers)
+    }
+
+    fn targets_too_large(&self, count: usize) -> Error {
+        Error::TooLarge {
+            detail: format!(
+                "a batch holds at most {} targets, got {count}",
+                self.limits.max_batch
+            ),
+            field: Some("targets".into()),
+        }
+    }
+
+    /// [`Service::ik`] on the blocking pool, so a long solve does not hold
+    /// up the async front doors.
+    pub async fn ik_blocking(
+        self: &Arc<Self>,
+        robot: Arc<Entry>,
+        spec: IkSpec,
+    ) -> Result<IkAnswer> {
+        let this = Arc::clone(self);
+        tokio::task::spawn_blocking(move || this.ik(&robot.robot, &spec))
+            .await
+            .map_err(|e| Error::Internal {
+                detail: e.to_string(),
+            })?
+    }
+
+    /// [`Service::ik_batch`] on the blocking pool.
+    pub async fn ik_batch_blocking(
+        self: &Arc<Self>,
+        robot: Arc<Entry>,
+        spec: IkBatchSpec,
+    ) -> Result<Vec<IkAnswer>> {
+        let this = Arc::clone(self);
+        tokio::task::spawn_blocking(move || this.ik_batch(&robot.robot, &spec))
+            .await
+            .map_err(|e| Error::Internal {
+                detail: e.to_string(),
+            })?
     }
 }
 

@@ -54,7 +54,8 @@ impl App {
     pub async fn build(config: ServeConfig) -> std::io::Result<App> {
         let limits = config.service_limits();
         let (store, syncer) = open_store(&config).await?;
-        let registry = Registry::new(store);
+        let registry = Registry::new(store).with_max_registered(config.max_robots);
+        let token = api_token(config.api_token.as_deref())?;
         let builtins = registry.load_builtins(config.robots_dir.as_deref(), &limits.model);
         let model_limits = limits.model;
         let (registry, stored) = tokio::task::spawn_blocking(move || {
@@ -72,12 +73,7 @@ impl App {
             store = registry.store_health().kind,
             "robots loaded"
         );
-        if config.api_token.as_deref().is_none_or(str::is_empty) {
-            tracing::warn!(
-                "KINSERVE_API_TOKEN is not set: anyone who can reach the server may register and delete robots"
-            );
-        }
-        let service = Arc::new(Service::new(registry, limits, config.api_token.clone()));
+        let service = Arc::new(Service::new(registry, limits, token));
         let http = TcpListener::bind(config.http_addr).await?;
         let grpc = TcpListener::bind(config.grpc_addr).await?;
         Ok(App {
@@ -191,6 +187,30 @@ impl App {
         tracing::info!("kinserve stopped");
         Ok(())
     }
+}
+
+/// The API token to require: surrounding whitespace (a newline from a secret
+/// file, say) is trimmed with a warning; a token of whitespace only is a
+/// start-up error, since nobody could ever present it. Unset: open, warned.
+fn api_token(raw: Option<&str>) -> std::io::Result<Option<String>> {
+    let Some(raw) = raw.filter(|t| !t.is_empty()) else {
+        tracing::warn!(
+            "KINSERVE_API_TOKEN is not set: anyone who can reach the server may register and delete robots"
+        );
+        return Ok(None);
+    };
+    let trimmed = raw.trim();
+    if trimmed.is_empty() {
+        return Err(std::io::Error::other(
+            "KINSERVE_API_TOKEN is only whitespace: set a real token, or unset it for an open server",
+        ));
+    }
+    if trimmed.len() != raw.len() {
+        tracing::warn!(
+            "KINSERVE_API_TOKEN has surrounding whitespace (e.g. a trailing newline): it was trimmed"
+        );
+    }
+    Ok(Some(trimmed.to_string()))
 }
 
 /// The store `config` asks for: PostgreSQL (with its sync task) when

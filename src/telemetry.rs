@@ -105,6 +105,10 @@ pub const FAMILIES: &[(&str, &str)] = &[
         "Lifetime of closed FK streams in seconds, by protocol.",
     ),
     (
+        "kinserve_ik_solves_total",
+        "Inverse-kinematics targets solved (REST, WebSocket, gRPC, single and batch), by converged (true or false).",
+    ),
+    (
         "kinserve_poses_computed_total",
         "Poses computed, by robot (built-ins and the first registered names; others as `other`) and protocol.",
     ),

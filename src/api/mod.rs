@@ -22,6 +22,7 @@ use crate::error::Error;
 pub mod grpc;
 pub mod pose;
 pub mod rest;
+pub mod velocity;
 
 /// The error a caught panic is answered with, on every front door: logs the
 /// panic's message (`what` says where) and returns [`Error::Internal`], whose

@@ -128,6 +128,8 @@ pub struct Registry {
     /// Serialises snapshot updates (and the writes of a local store).
     writer: Mutex<Tombstones>,
     store: Box<dyn Store>,
+    /// Most registered (not built-in) robots; a new one beyond is refused.
+    max_registered: usize,
 }
 
 impl std::fmt::Debug for Registry {
@@ -154,7 +156,15 @@ impl Registry {
             map: ArcSwap::from_pointee(Map::new()),
             writer: Mutex::new(Tombstones::new()),
             store,
+            max_registered: usize::MAX,
         }
+    }
+
+    /// The same registry, refusing a new registered robot once `max` are held
+    /// ([`Error::Full`]); replacing one is always allowed.
+    pub fn with_max_registered(mut self, max: usize) -> Registry {
+        self.max_registered = max;
+        self
     }
 
     /// Loads the built-in robots, read-only: the ones embedded in the binary,
@@ -311,6 +321,22 @@ impl Registry {
             PutMode::Create => Condition::Absent,
             PutMode::Upsert => cond,
         };
+        if self.map.load().get(&name).is_none() {
+            let registered = self
+                .map
+                .load()
+                .values()
+                .filter(|e| e.origin == Origin::Registered)
+                .count();
+            if registered >= self.max_registered {
+                return Err(Error::Full {
+                    detail: format!(
+                        "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
+                        self.max_registered
+                    ),
+                });
+            }
+        }
         let spec = robot.spec().clone();
         let result = self.write(
             &name,

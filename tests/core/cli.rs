@@ -1,4 +1,4 @@
-//! The `kinserve` command line: `fk` and `validate`.
+//! The `kinserve` command line: `fk`, `validate` and `bench`.
 
 use kinserve_testkit::RobotExt;
 use std::process::Command;
@@ -188,4 +188,162 @@ fn urdf_prints_the_document_and_errors_exit_non_zero() {
         assert!(out.stdout.is_empty(), "{args:?}");
         assert!(!out.stderr.is_empty(), "{args:?}");
     }
+}
+
+#[test]
+fn bench_prints_positive_finite_figures_and_the_kernel() {
+    for source in [["--robot", "puma560"], ["--model", "robots/panda.json"]] {
+        let out = kinserve()
+            .arg("bench")
+            .args(source)
+            .args(["--batch", "64", "--json"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(v["robot"] == "puma560" || v["robot"] == "panda", "{v}");
+        let kernels: Vec<&str> = kinserve::kinematics::Kernel::ALL
+            .iter()
+            .map(|k| k.name())
+            .collect();
+        assert!(kernels.contains(&v["simd"].as_str().unwrap()), "{v}");
+        for field in ["single_ns", "frames_ns", "batch_ns_per_pose"] {
+            let x = v[field].as_f64().unwrap_or(f64::NAN);
+            assert!(x.is_finite() && x > 0.0, "{field}: {v}");
+        }
+        assert_eq!(v.as_object().unwrap().len(), 5, "{v}");
+    }
+    let table = kinserve()
+        .args(["bench", "--robot", "ur5e", "--batch", "16"])
+        .output()
+        .unwrap();
+    assert!(table.status.success());
+    assert!(String::from_utf8_lossy(&table.stdout).contains("ns/pose"));
+    let missing = kinserve()
+        .args(["bench", "--robot", "no_such_robot"])
+        .output()
+        .unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no_such_robot"));
+}
+
+fn run_json(args: &[&str]) -> (bool, serde_json::Value, String) {
+    let out = kinserve().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let v = serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
+    (out.status.success(), v, stderr)
+}
+
+#[test]
+fn jacobian_prints_the_rest_json_per_radian() {
+    let (ok, v, err) = run_json(&[
+        "jacobian",
+        "--robot",
+        "planar_2dof",
+        "--joints",
+        "90,-90",
+        "--deg",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        (v["robot"].as_str(), v["frame"].as_str()),
+        (Some("planar_2dof"), Some("base"))
+    );
+    // a1 = 0.4, a2 = 0.3 at θ1 = 90°, θ2 = -90°: J = [[-a1 s1 - a2 s12, -a2 s12], [a1 c1 + a2 c12, a2 c12], …].
+    let j = &v["jacobian"];
+    let expect = [[-0.4, 0.0], [0.3, 0.3]];
+    for (r, row) in expect.iter().enumerate() {
+        for (c, x) in row.iter().enumerate() {
+            assert!(
+                (j[r][c].as_f64().unwrap() - x).abs() < 1e-12,
+                "J[{r}][{c}] = {}",
+                j[r][c]
+            );
+        }
+    }
+    assert_eq!(j[5], serde_json::json!([1.0, 1.0]));
+    assert!((v["manipulability"].as_f64().unwrap() - 0.12).abs() < 1e-12);
+    let (ok, v, _) = run_json(&[
+        "jacobian",
+        "--robot",
+        "puma560",
+        "--joints",
+        "0,0,0,0,0,0",
+        "--frame",
+        "tool",
+    ]);
+    assert!(ok && v["frame"] == "tool" && v["jacobian"].as_array().unwrap().len() == 6);
+}
+
+#[test]
+fn ik_reaches_an_fk_pose_and_an_unreachable_target_exits_1_with_the_best_attempt() {
+    let (ok, fk, err) = run_json(&[
+        "fk",
+        "--robot",
+        "ur5e",
+        "--joints",
+        "30,-80,70,-40,80,10",
+        "--deg",
+    ]);
+    assert!(ok, "{err}");
+    let p = &fk["pose"];
+    let list = |v: &serde_json::Value| -> String {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let q = &p["quaternion"];
+    let quaternion = format!("{},{},{},{}", q["w"], q["x"], q["y"], q["z"]);
+    let position = list(&p["position"]);
+    let (ok, ik, err) = run_json(&[
+        "ik",
+        "--robot",
+        "ur5e",
+        "--position",
+        &position,
+        "--quaternion",
+        &quaternion,
+        "--deg",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        (ik["converged"].as_bool(), ik["angle_unit"].as_str()),
+        (Some(true), Some("deg"))
+    );
+    let joints = list(&ik["joints"]);
+    let (ok, again, err) = run_json(&["fk", "--robot", "ur5e", "--joints", &joints, "--deg"]);
+    assert!(ok, "joints within limits: {err}");
+    for i in 0..3 {
+        let (a, b) = (
+            again["pose"]["position"][i].as_f64().unwrap(),
+            p["position"][i].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
+    }
+    let (ok, best, err) = run_json(&[
+        "ik",
+        "--robot",
+        "ur5e",
+        "--position",
+        "5,0,0",
+        "--quaternion",
+        "1,0,0,0",
+        "--restarts",
+        "2",
+    ]);
+    assert!(!ok && err.contains("did not converge"), "{err}");
+    assert_eq!(best["converged"], false);
+    assert!(best["position_error"].as_f64().unwrap() > 4.0);
+    // Bad flags name the flag; bad values the field.
+    let (ok, _, err) = run_json(&["ik", "--robot", "ur5e", "--position", "1,2"]);
+    assert!(!ok && err.contains("--position"), "{err}");
+    let (ok, _, err) = run_json(&["ik", "--robot", "ur5e", "--position", "0.3,0,0.2"]);
+    assert!(!ok && err.contains("target.quaternion"), "{err}");
 }

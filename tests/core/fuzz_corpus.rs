@@ -6,7 +6,7 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
-use kinserve_testkit::fuzzing::{check_fk_request, check_model};
+use kinserve_testkit::fuzzing::{check_fk_request, check_ik_request, check_model};
 
 fn files(target: &str) -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
@@ -69,6 +69,11 @@ fn model_corpus_replays_clean() {
 #[test]
 fn fk_request_corpus_replays_clean() {
     replay("fk_request", check_fk_request);
+}
+
+#[test]
+fn ik_request_corpus_replays_clean() {
+    replay("ik_request", check_ik_request);
 }
 
 /// Found by schemathesis: serde's derive reads a struct from an array of its

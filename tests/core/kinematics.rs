@@ -2,7 +2,7 @@
 //! vectorised sine/cosine against `std`.
 
 use kinserve::kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Kernel, Transform};
+use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
 /// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
@@ -40,11 +40,10 @@ fn sincos_matches_std_over_range() {
     xs.extend([0.0, -0.0, 1e-300, -1e-300, POLY_LIMIT, -POLY_LIMIT]);
     let mut s = vec![0.0; xs.len()];
     let mut c = vec![0.0; xs.len()];
-    for simd in [true, false] {
-        if simd {
-            sincos_slice(&xs, &mut s, &mut c);
-        } else {
-            sincos_slice_with(Kernel::Portable, &xs, &mut s, &mut c);
+    for kernel in supported_kernels().into_iter().map(Some).chain([None]) {
+        match kernel {
+            Some(k) => sincos_slice_with(k, &xs, &mut s, &mut c),
+            None => sincos_slice(&xs, &mut s, &mut c),
         }
         let mut worst: f64 = 0.0;
         for i in 0..xs.len() {
@@ -53,7 +52,7 @@ fn sincos_matches_std_over_range() {
         }
         assert!(
             worst <= SINCOS_ABS_BOUND,
-            "simd={simd}: max abs error {worst:e} > {SINCOS_ABS_BOUND:e}"
+            "{kernel:?}: max abs error {worst:e} > {SINCOS_ABS_BOUND:e}"
         );
     }
 }
@@ -129,7 +128,7 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
                     let q = &qs[k * dof..(k + 1) * dof];
                     let reference = forward_reference(&chain, q, 1.0);
                     let single = chain.forward_with(kernel, q, 1.0);
-                    let (framed, frames) = chain.forward_frames(q, 1.0);
+                    let (framed, frames) = chain.forward_frames_with(kernel, q, 1.0);
                     for (what, t) in [("single", single), ("batch", batch[k]), ("frames", framed)] {
                         let e = t.max_abs_diff(&reference);
                         assert!(
@@ -140,6 +139,160 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
                     assert_eq!(frames.len(), chain.rows() + 1);
                 }
             }
+        }
+    }
+}
+
+/// A random chain shaped like real arms: twists of 0, ±90° and 180° (in rad, so
+/// not exactly representable, as in the robot files), zero `a`/`d`/`θ` half the
+/// time, prismatic and fixed rows anywhere (also first and last), with or
+/// without a base and a tool. These compile to the aligned steps.
+fn random_aligned_chain(rng: &mut Rng, convention: Convention, n: usize) -> Chain {
+    fn pick(rng: &mut Rng) -> f64 {
+        let v = rng.range(-1.0, 1.0);
+        if rng.next_f64() < 0.5 { 0.0 } else { v }
+    }
+    let rows: Vec<DhRow> = (0..n)
+        .map(|_| {
+            let u = rng.next_f64();
+            DhRow {
+                kind: if u < 0.6 {
+                    JointKind::Revolute
+                } else if u < 0.8 {
+                    JointKind::Prismatic
+                } else {
+                    JointKind::Fixed
+                },
+                a: pick(rng),
+                alpha: [0.0f64, 90.0, -90.0, 180.0, 270.0][(rng.next_f64() * 5.0) as usize]
+                    .to_radians(),
+                d: pick(rng),
+                theta: [0.0, 0.0, 90f64.to_radians(), rng.range(-3.2, 3.2)]
+                    [(rng.next_f64() * 4.0) as usize],
+            }
+        })
+        .collect();
+    let base = if rng.next_f64() < 0.5 {
+        Transform::IDENTITY
+    } else {
+        Transform::from_translation_rpy([0.1, -0.2, 0.3], [0.3, -0.2, 1.0])
+    };
+    let tool = (rng.next_f64() < 0.5).then(|| Transform::translation(0.0, 0.0, 0.1));
+    Chain::new(convention, &rows, base, tool)
+}
+
+#[test]
+fn aligned_tables_match_the_plain_product_on_every_kernel() {
+    let mut rng = Rng(17);
+    let mut aligned = 0;
+    for convention in [Convention::Standard, Convention::Modified] {
+        for case in 0..300 {
+            let chain = random_aligned_chain(&mut rng, convention, 1 + case % 12);
+            aligned += chain.aligned_steps();
+            let dof = chain.dof();
+            let count = 19;
+            let qs: Vec<f64> = (0..count * dof).map(|_| rng.range(-6.0, 6.0)).collect();
+            for kernel in supported_kernels() {
+                let mut batch = vec![Transform::IDENTITY; count];
+                chain.forward_batch_with(kernel, &qs, 1.0, &mut batch);
+                for k in 0..count {
+                    let q = &qs[k * dof..(k + 1) * dof];
+                    let reference = forward_reference(&chain, q, 1.0);
+                    let (framed, frames) = chain.forward_frames_with(kernel, q, 1.0);
+                    for (what, t) in [
+                        ("single", chain.forward_with(kernel, q, 1.0)),
+                        ("batch", batch[k]),
+                        ("frames", framed),
+                    ] {
+                        let e = t.max_abs_diff(&reference);
+                        assert!(
+                            e <= FAST_PATH_TOL,
+                            "{convention:?} case {case} {kernel:?} {what}: {e:e}"
+                        );
+                    }
+                    assert_eq!(frames.len(), chain.rows() + 1);
+                    assert_frames_match_the_plain_products(&chain, q, &frames);
+                    let mut called = Vec::new();
+                    let t =
+                        chain.forward_frames_into_with(kernel, q, 1.0, &mut |f| called.push(*f));
+                    assert_eq!(
+                        (t, &called),
+                        (framed, &frames),
+                        "callback and slice frames agree"
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        aligned > 1000,
+        "the generator should produce aligned steps, got {aligned}"
+    );
+}
+
+/// Frame `i` is `base · A_1 ⋯ A_i` (no tool), by the textbook link matrices.
+fn assert_frames_match_the_plain_products(chain: &Chain, q: &[f64], frames: &[Transform]) {
+    let mut t = *chain.base();
+    let mut qi = q.iter();
+    assert!(frames[0].max_abs_diff(&t) <= FAST_PATH_TOL);
+    for (i, row) in chain.dh_rows().enumerate() {
+        let v = match row.kind {
+            JointKind::Fixed => 0.0,
+            _ => qi.next().copied().unwrap_or(0.0),
+        };
+        t = t * kinserve::kinematics::link_transform(chain.convention(), &row, v);
+        let e = frames[i + 1].max_abs_diff(&t);
+        assert!(e <= FAST_PATH_TOL, "frame {}: {e:e}", i + 1);
+    }
+}
+
+#[test]
+fn frames_match_the_plain_products_for_random_tables() {
+    let mut rng = Rng(23);
+    for convention in [Convention::Standard, Convention::Modified] {
+        for n in [1, 3, 6, 9, 17, 30] {
+            let chain = random_chain(&mut rng, convention, n);
+            let q: Vec<f64> = (0..chain.dof()).map(|_| rng.range(-6.0, 6.0)).collect();
+            for kernel in supported_kernels() {
+                let (_, frames) = chain.forward_frames_with(kernel, &q, 1.0);
+                assert_frames_match_the_plain_products(&chain, &q, &frames);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_built_in_arms_compile_to_aligned_steps_only() {
+    for name in ["puma560", "ur5e", "panda", "kuka_kr5", "stanford"] {
+        let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+        let robot = kinserve::model::load_robot_file(std::path::Path::new(&path)).unwrap();
+        let chain = robot.chain();
+        assert_eq!(chain.aligned_steps(), chain.dof(), "{name}");
+    }
+}
+
+#[test]
+fn missing_and_extra_joint_values_count_as_zero_and_are_ignored() {
+    let mut rng = Rng(29);
+    for n in [3, 9, 12] {
+        let chain = random_aligned_chain(&mut rng, Convention::Standard, n);
+        let dof = chain.dof();
+        let mut full = vec![0.0; dof + 3];
+        for v in full.iter_mut().take(dof / 2) {
+            *v = rng.range(-3.0, 3.0);
+        }
+        let short = &full[..dof / 2];
+        for kernel in supported_kernels() {
+            let expect = forward_reference(&chain, &full[..dof], 1.0);
+            assert!(chain.forward_with(kernel, short, 1.0).max_abs_diff(&expect) <= FAST_PATH_TOL);
+            assert!(chain.forward_with(kernel, &full, 1.0).max_abs_diff(&expect) <= FAST_PATH_TOL);
+            let (t, frames) = chain.forward_frames_with(kernel, short, 1.0);
+            assert!(t.max_abs_diff(&expect) <= FAST_PATH_TOL);
+            assert_eq!(frames.len(), chain.rows() + 1);
+            // A slice too short gets the first frames only; the pose is still right.
+            let mut two = [Transform::IDENTITY; 2];
+            let t2 = chain.forward_frames_to_with(kernel, short, 1.0, &mut two);
+            assert_eq!((t2, two), (t, [frames[0], frames[1]]));
         }
     }
 }
@@ -166,10 +319,44 @@ fn huge_joint_values_still_match_the_plain_product() {
             .forward(&q, 1.0)
             .max_abs_diff(&forward_reference(&chain, &q, 1.0));
         assert!(e <= 1e-9, "q={x}: {e:e}");
-        let mut out = vec![Transform::IDENTITY; 8];
-        let qs: Vec<f64> = q.iter().cycle().take(8 * 5).copied().collect();
-        chain.forward_batch(&qs, 1.0, &mut out);
-        assert!(out[7].max_abs_diff(&forward_reference(&chain, &q, 1.0)) <= 1e-9);
+        for kernel in supported_kernels() {
+            let e = chain
+                .forward_with(kernel, &q, 1.0)
+                .max_abs_diff(&forward_reference(&chain, &q, 1.0));
+            assert!(e <= 1e-9, "q={x} {kernel:?}: {e:e}");
+            let (t, _) = chain.forward_frames_with(kernel, &q, 1.0);
+            assert!(t.max_abs_diff(&forward_reference(&chain, &q, 1.0)) <= 1e-9);
+            // 17 poses: two blocks of 8 (one huge value in each) and a tail.
+            let mut out = vec![Transform::IDENTITY; 17];
+            let qs: Vec<f64> = q.iter().cycle().take(17 * 5).copied().collect();
+            chain.forward_batch_with(kernel, &qs, 1.0, &mut out);
+            for t in &out {
+                assert!(t.max_abs_diff(&forward_reference(&chain, &q, 1.0)) <= 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn non_finite_joint_values_give_non_finite_poses_like_the_plain_product() {
+    let mut rng = Rng(31);
+    let chain = random_chain(&mut rng, Convention::Standard, 6);
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let q = [0.1, bad, 0.3, 0.2, 0.5];
+        assert!(!forward_reference(&chain, &q, 1.0).translation[0].is_finite());
+        for kernel in supported_kernels() {
+            assert!(
+                !chain.forward_with(kernel, &q, 1.0).translation[0].is_finite(),
+                "{kernel:?}"
+            );
+            let mut out = vec![Transform::IDENTITY; 9];
+            let qs: Vec<f64> = q.iter().cycle().take(9 * 5).copied().collect();
+            chain.forward_batch_with(kernel, &qs, 1.0, &mut out);
+            assert!(
+                out.iter().all(|t| !t.translation[0].is_finite()),
+                "{kernel:?}"
+            );
+        }
     }
 }
 

@@ -237,3 +237,52 @@ fn degrees_and_millimetres_are_converted_where_they_belong() {
         }
     }
 }
+
+/// Revolute joint values are bounded (±1e5 rad) like every other magnitude, so
+/// every accepted input gives the same pose with and without frames (the
+/// issue's repro: a 33.3° θ offset at 1e17 deg gave two different poses).
+#[test]
+fn revolute_values_are_bounded_and_frames_agree_up_to_the_bound() {
+    let model = json!({
+        "name": "offset", "convention": "standard", "angle_unit": "deg",
+        "links": [
+            {"joint": "revolute", "a": 0.5, "alpha": 0, "d": 0, "theta": 33.3},
+            {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}
+        ]
+    });
+    let robot = Robot::from_json(
+        &serde_json::to_vec(&model).unwrap(),
+        &ModelLimits::default(),
+    )
+    .unwrap();
+    let deg = FkOptions {
+        angle_unit: AngleUnit::Deg,
+        check_limits: false,
+    };
+    let e = robot.fk(&[1e17, 0.0], &deg).unwrap_err();
+    assert_eq!(e.violations()[0].field, "joints[0]");
+    assert!(
+        e.violations()[0]
+            .message
+            .contains("largest revolute joint value"),
+        "{e}"
+    );
+    // Just inside the bound (the bound itself may round either way in degrees).
+    let edge = kinserve::model::MAX_REVOLUTE_RAD.to_degrees() * (1.0 - 1e-12);
+    for q in [[edge, 0.0], [-edge, 1234.5], [0.5 * edge, -0.25 * edge]] {
+        let single = robot.fk(&q, &deg).unwrap();
+        let (tool, _) = robot.fk_frames(&q, &deg).unwrap();
+        // The angle itself is only known to an ulp of 1e5 rad (1.5e-11); reach 0.8 m.
+        assert!(
+            single.max_abs_diff(&tool) <= 1e-9,
+            "{q:?}: {:e}",
+            single.max_abs_diff(&tool)
+        );
+    }
+    // Limits in a model are bounded the same way.
+    let mut wide = model.clone();
+    wide["links"][0]["limits"] = json!([-1e9, 1e9]);
+    let e =
+        Robot::from_json(&serde_json::to_vec(&wide).unwrap(), &ModelLimits::default()).unwrap_err();
+    assert_eq!(e.violations()[0].field, "links[0].limits");
+}

@@ -1,20 +1,30 @@
 //! Property tests (proptest) over random DH tables and configurations.
 
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Kernel, Transform};
-use kinserve_testkit::forward_reference;
+use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve_testkit::{forward_reference, supported_kernels};
 use proptest::prelude::*;
 
 fn kind() -> impl Strategy<Value = JointKind> {
     prop_oneof![4 => Just(JointKind::Revolute), 1 => Just(JointKind::Prismatic), 1 => Just(JointKind::Fixed)]
 }
 
+/// Any value in the range, or exactly one of `special` (0 and, for angles, the
+/// multiples of 90° in rad that real tables use): those compile to the
+/// aligned steps, the rest to general ones.
+fn value(lo: f64, hi: f64, special: &'static [f64]) -> impl Strategy<Value = f64> {
+    prop_oneof![lo..hi, prop::sample::select(special)]
+}
+
+const HALF_PI: f64 = std::f64::consts::FRAC_PI_2;
+const ANGLES: &[f64] = &[0.0, HALF_PI, -HALF_PI, std::f64::consts::PI];
+
 fn row() -> impl Strategy<Value = DhRow> {
     (
         kind(),
-        -2.0..2.0f64,
-        -3.2..3.2f64,
-        -2.0..2.0f64,
-        -3.2..3.2f64,
+        value(-2.0, 2.0, &[0.0]),
+        value(-3.2, 3.2, ANGLES),
+        value(-2.0, 2.0, &[0.0]),
+        value(-3.2, 3.2, ANGLES),
     )
         .prop_map(|(kind, a, alpha, d, theta)| DhRow {
             kind,
@@ -116,12 +126,25 @@ proptest! {
     }
 
     #[test]
-    fn fast_paths_match_the_plain_product((rows, q) in table(), base in rigid()) {
+    fn fast_paths_match_the_plain_product((rows, q) in table(), base in rigid(), tool in rigid()) {
         for convention in [Convention::Standard, Convention::Modified] {
-            let chain = Chain::new(convention, &rows, base, None);
-            let reference = forward_reference(&chain, &q, 1.0);
-            prop_assert!(chain.forward(&q, 1.0).max_abs_diff(&reference) <= TOL);
-            prop_assert!(chain.forward_with(Kernel::Portable, &q, 1.0).max_abs_diff(&reference) <= TOL);
+            for tool in [None, Some(tool)] {
+                let chain = Chain::new(convention, &rows, base, tool);
+                let reference = forward_reference(&chain, &q, 1.0);
+                prop_assert!(chain.forward(&q, 1.0).max_abs_diff(&reference) <= TOL);
+                let batch_q: Vec<f64> = q.iter().cycle().take(q.len() * 9).copied().collect();
+                for kernel in supported_kernels() {
+                    prop_assert!(chain.forward_with(kernel, &q, 1.0).max_abs_diff(&reference) <= TOL, "{kernel:?}");
+                    let (t, frames) = chain.forward_frames_with(kernel, &q, 1.0);
+                    prop_assert!(t.max_abs_diff(&reference) <= TOL, "{kernel:?} frames");
+                    prop_assert_eq!(frames.len(), rows.len() + 1);
+                    let mut out = vec![Transform::IDENTITY; 9];
+                    chain.forward_batch_with(kernel, &batch_q, 1.0, &mut out);
+                    for t in &out {
+                        prop_assert!(t.max_abs_diff(&reference) <= TOL, "{kernel:?} batch");
+                    }
+                }
+            }
         }
     }
 }

@@ -3,10 +3,16 @@
 //! distal and modified / Craig, proximal).
 //!
 //! It owns rigid transforms ([`Transform`]), DH rows and their link matrices
-//! ([`DhRow`], [`link_transform`]), compiled chains with everything that does
-//! not depend on the joint values computed once ([`Chain`]), and vectorised
-//! sine/cosine ([`sincos`]). The fast paths pick the widest kernel the CPU has
-//! at run time ([`Kernel`]); every kernel computes the same product.
+//! ([`DhRow`], [`link_transform`]), compiled chains ([`Chain`]: each table
+//! specialised once, at construction, into constants folded between the joints
+//! and steps classified by which entries are 0 or ±1), their evaluators (single
+//! pose, every frame, batches of 8 poses in structure-of-arrays form) and
+//! vectorised sine/cosine ([`sincos`]), the geometric Jacobian ([`Jacobian`], with
+//! manipulability and singularity measures under the `nalgebra` feature) and,
+//! under the `ik` feature, numerical inverse kinematics ([`ik`]). The fast
+//! paths pick the widest kernel the CPU has at run time ([`Kernel`]: AVX-512,
+//! AVX2+FMA, portable); every
+//! kernel computes the same product.
 //!
 //! Units: angles in radians, lengths in whatever unit the caller's table uses.
 //!
@@ -17,10 +23,20 @@
 mod chain;
 #[cfg(feature = "nalgebra")]
 mod convert;
+mod eval;
+#[cfg(feature = "ik")]
+pub mod ik;
+mod jacobian;
 mod kernel;
+mod lane;
+mod program;
 pub mod sincos;
+mod step;
 mod transform;
 
 pub use chain::{Chain, Convention, DhRow, JointKind, link_transform};
+pub use jacobian::{Jacobian, JacobianFrame};
+#[cfg(feature = "nalgebra")]
+pub use jacobian::{SINGULAR_THRESHOLD, VelocityMeasures};
 pub use kernel::Kernel;
 pub use transform::Transform;

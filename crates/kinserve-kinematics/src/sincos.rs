@@ -1,5 +1,6 @@
 //! Sine and cosine of many angles at once: a branch-free polynomial that the
-//! compiler vectorises (AVX2/FMA when the CPU has them, plain SSE2 otherwise).
+//! compiler vectorises (AVX-512 or AVX2 with FMA when the CPU has them, plain
+//! SSE2 otherwise).
 //!
 //! Method: Cody–Waite reduction by π/2 in three parts, then the Cephes minimax
 //! polynomials for sin and cos on `[-π/4, π/4]`, then a quadrant swap.
@@ -8,8 +9,15 @@
 //! larger or non-finite inputs fall back to `f64::sin_cos` itself, so the
 //! function is exact-as-std everywhere else.
 
+//!
+//! Depends only on the crate's kernel choice ([`Kernel`]).
+
 // The constants below are published ones, kept digit for digit as printed (fdlibm, Cephes).
 #![allow(clippy::excessive_precision)]
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several arrays in step; they vectorise as written"
+)]
 
 use crate::kernel::Kernel;
 
@@ -91,10 +99,45 @@ pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
     )
 }
 
-/// Whether `x` needs the `std` fallback (huge or not finite).
+/// Whether `x` needs the `std` fallback (huge or not finite). One comparison,
+/// so that it vectorises: NaN compares false.
 #[inline(always)]
+#[allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "NaN must count as needing std; one comparison keeps it vectorisable"
+)]
 pub fn needs_std(x: f64) -> bool {
-    x.abs() > POLY_LIMIT || !x.is_finite()
+    !(x.abs() <= POLY_LIMIT)
+}
+
+/// The polynomial sine and cosine of `L` angles (rad) as whole vectors, and
+/// whether any lane [needs `std`](needs_std) (its values are then wrong). No
+/// call, so vector state around it stays in registers.
+#[inline(always)]
+pub(crate) fn sincos_poly_lanes<const FMA: bool, const L: usize>(
+    x: &[f64; L],
+) -> ([f64; L], [f64; L], bool) {
+    let mut s = [0.0; L];
+    let mut c = [0.0; L];
+    for k in 0..L {
+        (s[k], c[k]) = sincos_poly_impl::<FMA>(x[k]);
+    }
+    (s, c, x.iter().fold(false, |any, &v| any | needs_std(v)))
+}
+
+/// Sine and cosine of `L` angles (rad) as whole vectors: the polynomial on every
+/// lane, then `std` for the lanes that need it (see [`needs_std`]) only when one does.
+#[inline(always)]
+pub(crate) fn sincos_lanes<const FMA: bool, const L: usize>(x: &[f64; L]) -> ([f64; L], [f64; L]) {
+    let (mut s, mut c, any) = sincos_poly_lanes::<FMA, L>(x);
+    if any {
+        for k in 0..L {
+            if needs_std(x[k]) {
+                (s[k], c[k]) = x[k].sin_cos();
+            }
+        }
+    }
+    (s, c)
 }
 
 #[inline(always)]
@@ -120,6 +163,12 @@ fn sincos_slice_avx2(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     sincos_slice_generic::<true>(x, sin, cos)
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
+fn sincos_slice_avx512(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
+    sincos_slice_generic::<true>(x, sin, cos)
+}
+
 /// Fills `sin[i], cos[i]` with the sine and cosine of `x[i]` (rad) for every `i`
 /// up to the shortest of the three slices, on the [best kernel](Kernel::best).
 pub fn sincos_slice(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
@@ -133,7 +182,10 @@ pub fn sincos_slice_with(kernel: Kernel, x: &[f64], sin: &mut [f64], cos: &mut [
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_portable` returned Avx2Fma, so the CPU supports avx2 and fma.
         Kernel::Avx2Fma => unsafe { sincos_slice_avx2(x, sin, cos) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_portable` returned Avx512, so the CPU supports every feature enabled.
+        Kernel::Avx512 => unsafe { sincos_slice_avx512(x, sin, cos) },
         #[cfg(not(target_arch = "x86_64"))]
-        Kernel::Avx2Fma => sincos_slice_generic::<false>(x, sin, cos),
+        Kernel::Avx2Fma | Kernel::Avx512 => sincos_slice_generic::<false>(x, sin, cos),
     }
 }

@@ -11,7 +11,11 @@ use std::ops::Mul;
 ///
 /// `rotation` is row-major (`rotation[row][col]`); `translation` is in whatever
 /// length unit the caller works in (kinserve keeps a robot's own unit, m or mm).
+///
+/// `repr(C)`: twelve doubles, the rotation rows then the translation (the fast
+/// paths store poses with whole-vector writes in that layout).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Transform {
     /// Rotation matrix, row-major.
     pub rotation: [[f64; 3]; 3],

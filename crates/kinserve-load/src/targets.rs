@@ -422,6 +422,7 @@ async fn stream_worker(
                         robot: robot.clone(),
                         joints,
                         options: None,
+                        ..Default::default()
                     };
                     if req_tx.send(req).await.is_err() {
                         return;

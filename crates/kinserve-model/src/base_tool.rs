@@ -42,44 +42,7 @@ pub(crate) fn transform_from_spec(
                 "give either matrix alone or translation with rpy or quaternion",
             ));
         }
-        for (i, row) in m.iter().enumerate() {
-            for (j, x) in row.iter().enumerate() {
-                check_finite(v, || format!("{field}.matrix[{i}][{j}]"), *x);
-            }
-        }
-        for (i, row) in m.iter().take(3).enumerate() {
-            if row[3].abs() > MAX_MAGNITUDE {
-                v.push(FieldViolation::new(
-                    format!("{field}.matrix[{i}][3]"),
-                    magnitude_message(),
-                ));
-            }
-        }
-        if v.len() > before {
-            return Transform::IDENTITY;
-        }
-        if m[3] != [0.0, 0.0, 0.0, 1.0] {
-            v.push(FieldViolation::new(
-                format!("{field}.matrix[3]"),
-                "last row must be [0, 0, 0, 1]",
-            ));
-        }
-        let tr = Transform::from_matrix(m);
-        let err = tr.rigidity_error();
-        if err > RIGID_TOLERANCE {
-            v.push(FieldViolation::new(
-                format!("{field}.matrix"),
-                format!(
-                    "rotation part is not a rigid rotation (orthonormal with det +1 within {RIGID_TOLERANCE:e}; off by {err:.3e})"
-                ),
-            ));
-            return tr;
-        }
-        // Accepted within the tolerance: use the nearest exact rotation (through
-        // its unit quaternion), so that base and tool errors cannot add up to a
-        // non-rigid pose.
-        return Transform::from_translation_quaternion(tr.translation, tr.quaternion())
-            .unwrap_or(tr);
+        return rigid_from_matrix(m, &format!("{field}.matrix"), before, v);
     }
     if t.rpy.is_some() && t.quaternion.is_some() {
         v.push(FieldViolation::new(
@@ -122,4 +85,54 @@ pub(crate) fn transform_from_spec(
         };
     }
     Transform::translation(translation[0], translation[1], translation[2])
+}
+
+/// Validates a homogeneous 4×4 matrix (row-major) under the field path
+/// `field` (`base.matrix`, `target.matrix`): finite entries, translation within
+/// ±[`MAX_MAGNITUDE`], last row `[0, 0, 0, 1]`, rotation rigid within
+/// [`RIGID_TOLERANCE`]. Returns the transform with the nearest exact rotation.
+/// The shape checks (last row, rigidity) are skipped when `v` grew past
+/// `before` (number errors, or any the caller found since `before`).
+pub(crate) fn rigid_from_matrix(
+    m: &[[f64; 4]; 4],
+    field: &str,
+    before: usize,
+    v: &mut Vec<FieldViolation>,
+) -> Transform {
+    for (i, row) in m.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            check_finite(v, || format!("{field}[{i}][{j}]"), *x);
+        }
+    }
+    for (i, row) in m.iter().take(3).enumerate() {
+        if row[3].abs() > MAX_MAGNITUDE {
+            v.push(FieldViolation::new(
+                format!("{field}[{i}][3]"),
+                magnitude_message(),
+            ));
+        }
+    }
+    if v.len() > before {
+        return Transform::IDENTITY;
+    }
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        v.push(FieldViolation::new(
+            format!("{field}[3]"),
+            "last row must be [0, 0, 0, 1]",
+        ));
+    }
+    let tr = Transform::from_matrix(m);
+    let err = tr.rigidity_error();
+    if err > RIGID_TOLERANCE {
+        v.push(FieldViolation::new(
+            field,
+            format!(
+                "rotation part is not a rigid rotation (orthonormal with det +1 within {RIGID_TOLERANCE:e}; off by {err:.3e})"
+            ),
+        ));
+        return tr;
+    }
+    // Accepted within the tolerance: use the nearest exact rotation (through
+    // its unit quaternion), so that small errors cannot add up to a non-rigid pose.
+    Transform::from_translation_quaternion(tr.translation, tr.quaternion()).unwrap_or(tr)
 }

@@ -35,6 +35,11 @@ impl<'a> JointVector<'a> {
         self.robot
     }
 
+    /// Factor from the values' angle unit to rad (1 for rad, π/180 for deg).
+    pub fn angle_scale(&self) -> f64 {
+        self.angle_scale
+    }
+
     /// World pose of the tool tip, `base · A_1 ⋯ A_n · tool`. Allocates nothing.
     pub fn fk(&self) -> Transform {
         self.robot.chain().forward(self.q, self.angle_scale)

@@ -6,7 +6,9 @@
 //! broken rule reported under its field path (`links[3].alpha`), units, base
 //! and tool, and the validated joint vector ([`JointVector`], [`JointBatch`]):
 //! the only input a robot's forward kinematics accepts, so "checked" is a
-//! type, not a naming convention.
+//! type, not a naming convention. On top of it: the Jacobian of a joint
+//! vector ([`JointVector::jacobian`]) and validated inverse-kinematics
+//! requests ([`IkSpec`] → [`Robot::check_ik`] → [`IkRequest`]).
 //!
 //! Units: a model keeps its own length unit (m or mm) and declares the angle
 //! unit of its table (rad or deg); internally angles are rad.
@@ -18,14 +20,20 @@
 mod base_tool;
 mod closed_form;
 mod error;
+mod ik;
 mod joints;
 mod json;
 mod robot;
 mod spec;
 mod urdf;
+mod velocity;
 
 pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
 pub use error::{FieldViolation, ModelError, Result, summary};
+pub use ik::{
+    IK_MAX_ITERATIONS, IK_MAX_RESTARTS, IK_TOLERANCE_RANGE, IkAnswer, IkBatch, IkBatchSpec,
+    IkRequest, IkSpec, IkTarget, IkTargetSpec,
+};
 pub use joints::{JointBatch, JointVector};
 pub use json::{load_robot_file, load_robot_file_with, parse_json};
 pub use robot::{FkOptions, Joint, ModelLimits, Robot};
@@ -34,6 +42,7 @@ pub use spec::{
     TransformSpec,
 };
 pub use urdf::to_urdf;
+pub use velocity::{JacobianAnswer, ReferenceFrame};
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
 pub const RIGID_TOLERANCE: f64 = 1e-6;
@@ -47,6 +56,12 @@ pub const MAX_LINK_NAME_CHARS: usize = 64;
 /// deg). With at most a few hundred rows every pose then stays many orders of
 /// magnitude below `f64::MAX`, so FK never overflows to infinity or NaN.
 pub const MAX_MAGNITUDE: f64 = 1e9;
+
+/// Largest magnitude of a revolute joint value accepted in an FK request, in
+/// rad (±1e5 rad, about ±15,900 turns; ±5,729,578° in degrees). Beyond it the
+/// angle's own rounding (an ulp of 1e5 is 1.5e-11 rad) would start to differ
+/// between evaluation paths; no joint turns that far.
+pub const MAX_REVOLUTE_RAD: f64 = 1e5;
 
 /// Checks a robot name: 1–64 characters of `[a-z0-9_-]`, first a letter or digit.
 pub fn validate_name(name: &str) -> std::result::Result<(), String> {

@@ -8,7 +8,7 @@ use crate::base_tool::{check_bounded, transform_from_spec};
 use crate::error::{FieldViolation, ModelError, Result};
 use crate::joints::{JointBatch, JointVector};
 use crate::spec::{AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, RobotSpec};
-use crate::{MAX_LINK_NAME_CHARS, MAX_MAGNITUDE, MAX_TEXT_CHARS, validate_name};
+use crate::{MAX_LINK_NAME_CHARS, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, MAX_TEXT_CHARS, validate_name};
 
 /// Limits on model size, configurable at start-up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -230,8 +230,15 @@ impl Robot {
                 "{x} {unit} is beyond ±{MAX_MAGNITUDE:e} {unit}, the largest prismatic joint value accepted"
             ));
         }
-        let (lo, hi) = j.limits.filter(|_| opts.check_limits)?;
         let scale = opts.angle_unit.to_rad();
+        if j.kind == JointKind::Revolute && (x * scale).abs() > MAX_REVOLUTE_RAD {
+            let unit = opts.angle_unit.as_str();
+            return Some(format!(
+                "{x} {unit} is beyond ±{} {unit}, the largest revolute joint value accepted (±1e5 rad)",
+                round6(MAX_REVOLUTE_RAD / scale)
+            ));
+        }
+        let (lo, hi) = j.limits.filter(|_| opts.check_limits)?;
         let internal = if j.kind == JointKind::Revolute {
             x * scale
         } else {
@@ -442,6 +449,13 @@ fn check_limits(
     } else if kind == JointKind::Prismatic && (lo.abs() > MAX_MAGNITUDE || hi.abs() > MAX_MAGNITUDE)
     {
         format!("prismatic limits must be within ±{MAX_MAGNITUDE:e} (model length unit)")
+    } else if kind == JointKind::Revolute
+        && (lo.abs() * scale > MAX_REVOLUTE_RAD || hi.abs() * scale > MAX_REVOLUTE_RAD)
+    {
+        format!(
+            "revolute limits must be within ±{} (model angle unit; ±1e5 rad)",
+            round6(MAX_REVOLUTE_RAD / scale)
+        )
     } else {
         return Some((lo * scale, hi * scale));
     };

@@ -37,6 +37,7 @@ macro_rules! object_only {
         }
     };
 }
+pub(crate) use object_only;
 
 /// DH convention of a table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

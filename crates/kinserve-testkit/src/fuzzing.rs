@@ -13,6 +13,11 @@
 //!   message, parsed as the server parses them and evaluated against a few
 //!   built-in robots, either fail with a client error (4xx) or give finite,
 //!   rigid poses that serialise to JSON numbers (never `null`).
+//! * [`check_ik_request`] (in `fuzz_ik`): the REST IK body, the IK batch body
+//!   and the WebSocket IK message, validated and solved (under a short time
+//!   cap) for a few built-in robots, either fail with a client error or give
+//!   joints within the limits whose FK is the reported pose, honest errors,
+//!   and `converged` exactly when those errors are within the tolerance.
 //!
 
 use std::sync::OnceLock;
@@ -24,10 +29,11 @@ use kinserve::registry::{MemoryStore, Registry};
 use kinserve::service::{Configurations, Service, ServiceLimits};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
-    AngleUnit, FkOptions, MAX_MAGNITUDE, ModelError, ModelLimits, RIGID_TOLERANCE, Robot,
-    parse_json,
+    AngleUnit, FkOptions, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError, ModelLimits,
+    RIGID_TOLERANCE, Robot, parse_json,
 };
 
+pub use crate::fuzz_ik::check_ik_request;
 use crate::reference::forward_reference;
 
 /// Relative tolerance between the fast (polynomial, SIMD) FK and the `std`
@@ -99,7 +105,8 @@ pub fn check_model(bytes: &[u8]) {
         );
     }
 
-    // Limits off: any finite revolute value, prismatic values within the bound.
+    // Limits off: revolute values within ±MAX_REVOLUTE_RAD (in rad, so also
+    // accepted as degrees), prismatic values within their bound.
     let free = FkOptions {
         angle_unit: AngleUnit::Rad,
         check_limits: false,
@@ -110,7 +117,7 @@ pub fn check_model(bytes: &[u8]) {
             .iter()
             .map(|j| match j.kind {
                 JointKind::Prismatic => rng.bounded(MAX_MAGNITUDE),
-                _ => rng.any_finite(),
+                _ => rng.bounded(MAX_REVOLUTE_RAD),
             })
             .collect();
         match robot.fk(&q, &free) {
@@ -139,6 +146,15 @@ pub fn check_model(bytes: &[u8]) {
     let mut bad = configs[0].clone();
     bad[rng.below(dof)] = f64::NAN;
     expect_invalid(robot.fk(&bad, &free), "NaN joint value");
+    if let Some(i) = robot
+        .joints()
+        .iter()
+        .position(|j| j.kind == JointKind::Revolute)
+    {
+        let mut far = vec![0.0; robot.dof()];
+        far[i] = 2.0 * MAX_REVOLUTE_RAD;
+        expect_invalid(robot.fk(&far, &free), "revolute value beyond the bound");
+    }
     if let Some(i) = robot
         .joints()
         .iter()
@@ -177,8 +193,11 @@ pub fn check_fk_request(bytes: &[u8]) {
                 angle_unit: req.angle_unit,
                 check_limits: req.check_limits,
             };
-            for robot in robots() {
-                evaluate_one(service, robot, &req.joints, &opts, req.frames);
+            // An IK message is the IK check's business (check_ik_request).
+            if let Some(joints) = &req.joints {
+                for robot in robots() {
+                    evaluate_one(service, robot, joints, &opts, req.frames);
+                }
             }
         }
         Err(e) => assert_client_error(&Error::from(e), "WsRequest"),
@@ -253,7 +272,7 @@ fn service() -> &'static Service {
 /// Built-in robots covering revolute limits (puma560), prismatic joints with
 /// limits (stanford, cylindrical_3dof), unlimited revolute joints (scara_4dof),
 /// and a model with unlimited, parallel prismatic joints.
-fn robots() -> &'static [Robot] {
+pub(crate) fn robots() -> &'static [Robot] {
     static ROBOTS: OnceLock<Vec<Robot>> = OnceLock::new();
     ROBOTS.get_or_init(|| {
         let files: [&[u8]; 4] = [
@@ -323,7 +342,7 @@ fn same_within_ulps(a: &serde_json::Value, b: &serde_json::Value) -> bool {
 }
 
 /// A model or request error must be one the client caused (HTTP 4xx).
-fn assert_client_error(e: &Error, what: &str) {
+pub(crate) fn assert_client_error(e: &Error, what: &str) {
     let status = Problem::from_error(e).status;
     assert!(
         (400..500).contains(&status),
@@ -342,7 +361,7 @@ fn expect_invalid(r: Result<Transform, ModelError>, what: &str) {
 }
 
 /// Finite and rigid, and its pose form (quaternion, rpy) is finite and unit.
-fn check_pose(t: &Transform, what: &str, q: &[f64]) {
+pub(crate) fn check_pose(t: &Transform, what: &str, q: &[f64]) {
     let finite = t.rotation.iter().flatten().all(|x| x.is_finite())
         && t.translation.iter().all(|x| x.is_finite());
     assert!(finite, "{what}: non-finite pose {t:?} for q = {q:?}");
@@ -399,7 +418,7 @@ fn check_agree(a: &Transform, b: &Transform, scale: f64, what: &str, q: &[f64]) 
 
 /// An upper bound on every translation the robot can produce with prismatic
 /// values within the model bound (the scale for translation tolerances).
-fn reach(robot: &Robot) -> f64 {
+pub(crate) fn reach(robot: &Robot) -> f64 {
     let n = robot
         .joints()
         .iter()
@@ -453,7 +472,7 @@ fn in_limit_configurations(robot: &Robot, rng: &mut Rng) -> Vec<Vec<f64>> {
                 (lo * (1.0 - f) + hi * f).clamp(lo, hi)
             }
             (None, JointKind::Prismatic) => rng.bounded(MAX_MAGNITUDE),
-            (None, _) => rng.any_finite(),
+            (None, _) => rng.bounded(MAX_REVOLUTE_RAD),
         }));
     }
     out
@@ -497,32 +516,6 @@ impl Rng {
             2 => 0.0,
             3 => self.unit() * 2.0 - 1.0,
             _ => (self.unit() * 2.0 - 1.0) * bound,
-        }
-    }
-
-    /// Any finite value, favouring the awkward ones.
-    fn any_finite(&mut self) -> f64 {
-        const SPECIAL: [f64; 12] = [
-            0.0,
-            -0.0,
-            std::f64::consts::PI,
-            -std::f64::consts::FRAC_PI_2,
-            1.0e5,
-            1.0e5 + 1.0,
-            1.0e15,
-            1.0e300,
-            f64::MAX,
-            -f64::MAX,
-            f64::MIN_POSITIVE,
-            5e-324,
-        ];
-        match self.below(3) {
-            0 => SPECIAL[self.below(SPECIAL.len())],
-            1 => (self.unit() * 2.0 - 1.0) * 10.0,
-            _ => {
-                let x = f64::from_bits(self.next());
-                if x.is_finite() { x } else { 1.0 }
-            }
         }
     }
 }

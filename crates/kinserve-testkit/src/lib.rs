@@ -9,6 +9,7 @@
 //! May depend on anything in the workspace; nothing in the workspace may
 //! depend on it except as a dev-dependency.
 
+mod fuzz_ik;
 pub mod fuzzing;
 pub mod reference;
 

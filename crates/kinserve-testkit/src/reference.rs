@@ -27,7 +27,7 @@ pub fn forward_reference(chain: &Chain, q: &[f64], angle_scale: f64) -> Transfor
 
 /// Every kernel this CPU can run, the portable one first.
 pub fn supported_kernels() -> Vec<Kernel> {
-    [Kernel::Portable, Kernel::Avx2Fma]
+    [Kernel::Portable, Kernel::Avx2Fma, Kernel::Avx512]
         .into_iter()
         .filter(|k| k.is_supported())
         .collect()

@@ -4,6 +4,7 @@ mod convert;
 mod grpc_metrics;
 mod oversize;
 pub mod status;
+mod velocity;
 
 use std::pin::Pin;
 use std::sync::Arc;
@@ -79,8 +80,17 @@ pub struct GrpcService {
 }
 
 /// The `authorization` metadata value of a request, if readable.
-fn authorization<T>(req: &Request<T>) -> Option<&str> {
-    req.metadata().get("authorization")?.to_str().ok()
+/// Two or more values are malformed: which one counts would be a guess.
+fn authorization<T>(req: &Request<T>) -> Result<Option<&str>, Error> {
+    let mut all = req.metadata().get_all("authorization").iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one authorization metadata value, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
 }
 
 impl GrpcService {
@@ -107,6 +117,102 @@ impl GrpcService {
         entry.count_poses(Protocol::Grpc, 1);
         let frames = fr.iter().flatten().map(convert::pose_to_pb).collect();
         Ok((convert::pose_to_pb(&t), frames, unit))
+    }
+}
+
+impl GrpcService {
+    /// The response to one stream message: FK (with the Jacobian when asked
+    /// for) or IK. `Err` only for a panic (the stream then ends INTERNAL).
+    async fn stream_reply(
+        &self,
+        msg: pb::StreamForwardKinematicsRequest,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        let id = msg.id;
+        let answer = match msg.ik {
+            Some(ik) => self.stream_ik(&msg.robot, msg.joints.is_empty(), ik).await,
+            None => std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                self.stream_fk(
+                    &msg.robot,
+                    &msg.joints,
+                    msg.options.as_ref(),
+                    msg.include_jacobian,
+                    msg.jacobian_frame,
+                )
+            }))
+            .map_err(|panic| super::panic_to_error(panic.as_ref(), "gRPC FK stream handler"))?,
+        };
+        Ok(match answer {
+            Ok(mut resp) => {
+                resp.id = id;
+                resp
+            }
+            Err(e) => pb::StreamForwardKinematicsResponse {
+                id,
+                result: Some(pb::stream_forward_kinematics_response::Result::Error(
+                    status::to_rpc_status(&e),
+                )),
+                ..Default::default()
+            },
+        })
+    }
+
+    fn stream_fk(
+        &self,
+        robot: &str,
+        joints: &[f64],
+        options: Option<&pb::FkOptions>,
+        include_jacobian: bool,
+        jacobian_frame: i32,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        let jacobian = if include_jacobian {
+            let entry = self.service.robot_at(robot, "robot")?;
+            Some(self.jacobian_one(&entry, joints, options, jacobian_frame, "jacobian_frame")?)
+        } else {
+            None
+        };
+        let (pose, frames, unit) = self.fk_one(robot, joints, options)?;
+        Ok(pb::StreamForwardKinematicsResponse {
+            id: 0,
+            result: Some(pb::stream_forward_kinematics_response::Result::Pose(pose)),
+            length_unit: unit as i32,
+            frames,
+            jacobian,
+            ik: None,
+        })
+    }
+
+    async fn stream_ik(
+        &self,
+        robot: &str,
+        no_joints: bool,
+        ik: pb::InverseKinematicsRequest,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        if !no_joints {
+            return Err(Error::invalid_field(
+                "joints",
+                "give joints (FK) or ik, not both",
+            ));
+        }
+        if !ik.robot.is_empty() && ik.robot != robot {
+            return Err(Error::invalid_field(
+                "ik.robot",
+                "must be empty or the message's robot",
+            ));
+        }
+        let entry = self.service.robot_at(robot, "robot")?;
+        let unit = convert::length_unit_to_pb(entry.robot.length_unit());
+        let (result, _) = self.ik_one(entry, ik).await?;
+        Ok(pb::StreamForwardKinematicsResponse {
+            id: 0,
+            result: result
+                .pose
+                .clone()
+                .map(pb::stream_forward_kinematics_response::Result::Pose),
+            length_unit: unit as i32,
+            frames: Vec::new(),
+            jacobian: None,
+            ik: Some(result),
+        })
     }
 }
 
@@ -162,7 +268,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::RegisterRobotRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         let req = req.into_inner();
         let robot = req
@@ -197,7 +303,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::DeleteRobotRequest>,
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
-        self.service.authorize_header(authorization(&req))?;
+        self.service.authorize_header(authorization(&req)?)?;
         let _permit = self.admit()?;
         let req = req.into_inner();
         let cond = match req.etag.as_str() {
@@ -296,32 +402,12 @@ impl KinematicsService for GrpcService {
                 };
                 // A bug (panic) while answering ends the stream with INTERNAL, not
                 // with a clean end of stream the client would take for success.
-                let answer = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    this.fk_one(&msg.robot, &msg.joints, msg.options.as_ref())
-                }));
-                let answer = match answer {
-                    Ok(answer) => answer,
-                    Err(panic) => {
-                        let e = super::panic_to_error(panic.as_ref(), "gRPC FK stream handler");
+                let resp = match this.stream_reply(msg).await {
+                    Ok(resp) => resp,
+                    Err(e) => {
                         let _ = tx.send(Err(Status::from(e))).await;
                         return;
                     }
-                };
-                let resp = match answer {
-                    Ok((pose, frames, unit)) => pb::StreamForwardKinematicsResponse {
-                        id: msg.id,
-                        result: Some(pb::stream_forward_kinematics_response::Result::Pose(pose)),
-                        length_unit: unit as i32,
-                        frames,
-                    },
-                    Err(e) => pb::StreamForwardKinematicsResponse {
-                        id: msg.id,
-                        result: Some(pb::stream_forward_kinematics_response::Result::Error(
-                            status::to_rpc_status(&e),
-                        )),
-                        length_unit: 0,
-                        frames: Vec::new(),
-                    },
                 };
                 // Waits while the client reads slowly: bounded buffering, end-to-end flow control.
                 if tx.send(Ok(resp)).await.is_err() {
@@ -330,6 +416,38 @@ impl KinematicsService for GrpcService {
             }
         });
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+    }
+
+    async fn jacobian(
+        &self,
+        req: Request<pb::JacobianRequest>,
+    ) -> Result<Response<pb::JacobianResponse>, Status> {
+        let _permit = self.admit()?;
+        Ok(Response::new(self.jacobian_call(req.into_inner())?))
+    }
+
+    async fn jacobian_batch(
+        &self,
+        req: Request<pb::JacobianBatchRequest>,
+    ) -> Result<Response<pb::JacobianBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        Ok(Response::new(self.jacobian_batch_call(req.into_inner())?))
+    }
+
+    async fn inverse_kinematics(
+        &self,
+        req: Request<pb::InverseKinematicsRequest>,
+    ) -> Result<Response<pb::InverseKinematicsResponse>, Status> {
+        let _permit = self.admit()?;
+        Ok(Response::new(self.ik_call(req.into_inner()).await?))
+    }
+
+    async fn inverse_kinematics_batch(
+        &self,
+        req: Request<pb::InverseKinematicsBatchRequest>,
+    ) -> Result<Response<pb::InverseKinematicsBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        Ok(Response::new(self.ik_batch_call(req.into_inner()).await?))
     }
 
     async fn get_closed_form(

@@ -17,20 +17,69 @@ pub fn code_of(e: &Error) -> Code {
         Error::AlreadyExists { .. } => Code::AlreadyExists,
         Error::ReadOnly { .. } => Code::FailedPrecondition,
         Error::Unauthenticated => Code::Unauthenticated,
+        Error::Forbidden { .. } => Code::PermissionDenied,
+        Error::Full { .. } => Code::ResourceExhausted,
         Error::TooLarge { .. } => Code::ResourceExhausted,
         Error::UnsupportedMediaType { .. } => Code::InvalidArgument,
         Error::Overloaded => Code::ResourceExhausted,
         Error::Unavailable { .. } => Code::Unavailable,
         Error::Storage { .. } => Code::Unavailable,
+        Error::IkNotConverged { .. } => Code::FailedPrecondition,
         Error::PreconditionFailed { .. } => Code::FailedPrecondition,
         Error::StoreUnavailable { .. } => Code::Unavailable,
         Error::Internal { .. } => Code::Internal,
     }
 }
 
+/// Domain of kinserve's `google.rpc.ErrorInfo` details.
+pub const ERROR_DOMAIN: &str = "kinserve";
+/// `ErrorInfo.reason` of an IK target not reached.
+pub const IK_NOT_CONVERGED: &str = "IK_NOT_CONVERGED";
+/// Type URL of the best attempt packed in the details of `IK_NOT_CONVERGED`.
+pub const IK_RESULT_TYPE_URL: &str = "type.googleapis.com/kinematics.v1.InverseKinematicsResult";
+
+/// FAILED_PRECONDITION with `google.rpc.ErrorInfo` (reason
+/// [`IK_NOT_CONVERGED`], the errors in its metadata) and the best attempt as a
+/// `kinematics.v1.InverseKinematicsResult`, both in the status details.
+fn ik_not_converged(code: Code, message: String, best: &crate::model::IkAnswer) -> Status {
+    let mut metadata = std::collections::HashMap::new();
+    metadata.insert(
+        "position_error".to_string(),
+        best.position_error.to_string(),
+    );
+    if let Some(o) = best.orientation_error {
+        metadata.insert("orientation_error".to_string(), o.to_string());
+    }
+    metadata.insert("iterations".to_string(), best.iterations.to_string());
+    let info = tonic_types::pb::ErrorInfo {
+        reason: IK_NOT_CONVERGED.into(),
+        domain: ERROR_DOMAIN.into(),
+        metadata,
+    };
+    let result = super::velocity::ik_result_to_pb(best);
+    let status = tonic_types::Status {
+        code: code as i32,
+        message: message.clone(),
+        details: vec![
+            prost_types::Any {
+                type_url: "type.googleapis.com/google.rpc.ErrorInfo".into(),
+                value: info.encode_to_vec(),
+            },
+            prost_types::Any {
+                type_url: IK_RESULT_TYPE_URL.into(),
+                value: result.encode_to_vec(),
+            },
+        ],
+    };
+    Status::with_details(code, message, status.encode_to_vec().into())
+}
+
 /// The status for an error; field violations travel as `google.rpc.BadRequest`.
 pub fn to_status(e: &Error) -> Status {
     let code = code_of(e);
+    if let Error::IkNotConverged { best, .. } = e {
+        return ik_not_converged(code, e.to_string(), best);
+    }
     let mut fields: Vec<(String, String)> = e
         .violations()
         .iter()

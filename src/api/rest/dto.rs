@@ -9,7 +9,7 @@ use utoipa::ToSchema;
 
 use crate::api::pose::Pose;
 use crate::kinematics::Transform;
-use crate::model::{AngleUnit, ConventionSpec, FkOptions, LengthUnit};
+use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
 use crate::service::Configurations;
 
 fn default_true() -> bool {
@@ -125,6 +125,57 @@ impl FkBatchRequest {
     }
 }
 
+/// `POST /v1/robots/{name}/jacobian`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"joints": [0, -30, 45, 0, 60, 0], "angle_unit": "deg", "frame": "base"}))]
+pub struct JacobianRequest {
+    /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
+    pub joints: Vec<f64>,
+    /// Unit of revolute joint values (default `rad`). The Jacobian's columns are per rad whatever this is.
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+    /// Frame of the Jacobian's rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+}
+
+impl JacobianRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+    }
+}
+
+/// `POST /v1/robots/{name}/jacobian/batch`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"configurations": [[0, 0], [0.5, -0.3]], "frame": "tool"}))]
+pub struct JacobianBatchRequest {
+    /// Joint configurations, each like `joints` of a single request.
+    #[schema(value_type = Vec<Vec<f64>>)]
+    pub configurations: Configurations,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+    /// Frame of the Jacobians' rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+}
+
+impl JacobianBatchRequest {
+    /// The evaluation options this request asks for.
+    pub fn options(&self) -> FkOptions {
+        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+    }
+}
+
 /// `POST /v1/robots/{name}/fk/batch` response.
 #[derive(Debug, Serialize, ToSchema)]
 #[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "poses": [{"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}]}))]
@@ -198,7 +249,9 @@ impl<'de> Deserialize<'de> for Configurations {
     }
 }
 
-/// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the reply.
+/// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the
+/// reply; with `"jacobian": true` the reply carries the Jacobian too; with
+/// `"ik": {...}` (an IK request body, and no `joints`) it is an IK request.
 #[derive(Clone, Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"id": 1, "joints": [0.5, 0.1], "angle_unit": "rad"}))]
@@ -206,8 +259,18 @@ pub struct WsRequest {
     /// Any JSON value; echoed in the reply.
     #[serde(default)]
     pub id: serde_json::Value,
-    /// Joint values (see [`FkRequest::joints`]).
-    pub joints: Vec<f64>,
+    /// Joint values (see [`FkRequest::joints`]); required unless `ik` is given.
+    #[serde(default)]
+    pub joints: Option<Vec<f64>>,
+    /// Also return the Jacobian and its measures (default false).
+    #[serde(default)]
+    pub jacobian: bool,
+    /// Frame of the Jacobian's rows (default `base`).
+    #[serde(default)]
+    pub frame: ReferenceFrame,
+    /// An IK request instead of FK (like the body of `POST /v1/robots/{name}/ik`).
+    #[serde(default)]
+    pub ik: Option<IkSpec>,
     /// Unit of revolute joint values (default `rad`).
     #[serde(default)]
     pub angle_unit: AngleUnit,
@@ -244,14 +307,50 @@ pub struct WsReply<'a> {
     /// Length unit of every position in this reply, on success.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub length_unit: Option<LengthUnit>,
-    /// The tool pose, on success.
+    /// The tool pose, on success (for IK: the pose at the joints found).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pose: Option<Pose>,
     /// Every frame, when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<Pose>>)]
     pub frames: Option<PosesSer<'a>>,
+    /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
+    #[serde(flatten)]
+    pub jacobian: Option<WsJacobian>,
+    /// For an IK request: the answer (as `POST …/ik` answers it, `pose` above).
+    #[serde(flatten)]
+    pub ik: Option<WsIk>,
     /// The problem, on failure.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<super::problem::Problem>,
+}
+
+/// The Jacobian part of a WebSocket reply (see [`crate::api::velocity::JacobianItem`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsJacobian {
+    /// Frame of the rows.
+    pub frame: ReferenceFrame,
+    /// 6 rows × one column per joint.
+    pub jacobian: Vec<Vec<f64>>,
+    /// `√det(J Jᵀ)` (see the REST endpoint).
+    pub manipulability: f64,
+    /// Largest over smallest singular value; `null` when the smallest is 0.
+    pub condition_number: Option<f64>,
+    /// Smallest singular value below 1e-6.
+    pub singular: bool,
+}
+
+/// The IK part of a WebSocket reply (see [`crate::api::velocity::IkItem`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsIk {
+    /// Joint values in the request's angle unit.
+    pub joints: Vec<f64>,
+    /// Always true here (not converged is an `error` with the best attempt).
+    pub converged: bool,
+    /// Distance from the target position, robot length unit.
+    pub position_error: f64,
+    /// Angle from the target orientation, rad (`null` without one).
+    pub orientation_error: Option<f64>,
+    /// Solver iterations.
+    pub iterations: u32,
 }

@@ -12,7 +12,7 @@ use crate::error::Error;
 use crate::model::parse_json;
 
 /// A JSON body parsed with field paths. Checks the content type (415), the
-/// body size (413: the batch limit on `/fk/batch`, the body limit elsewhere)
+/// body size (413: the batch limit on `…/batch` routes, the body limit elsewhere)
 /// and the JSON (400 / 422).
 pub struct JsonBody<T>(pub T);
 
@@ -68,7 +68,7 @@ impl<T: DeserializeOwned> JsonBody<T> {
                 });
             }
         }
-        let limit = if req.uri().path().ends_with("/fk/batch") {
+        let limit = if req.uri().path().ends_with("/batch") {
             state.settings.max_batch_body_bytes
         } else {
             state.settings.max_body_bytes

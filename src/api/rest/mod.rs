@@ -7,6 +7,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod velocity;
 mod ws;
 
 use std::sync::Arc;
@@ -30,7 +31,10 @@ use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
-pub use dto::{FkBatchRequest, FkRequest, RobotList, RobotSummaryDto, WsRequest};
+pub use dto::{
+    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
+    WsRequest,
+};
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
 
@@ -104,14 +108,15 @@ impl Modify for SecurityAddon {
 /// The OpenAPI 3.1 document of the REST API.
 #[derive(OpenApi)]
 #[openapi(
-    info(title = "kinserve", description = "Forward kinematics of serial robots (Denavit–Hartenberg tables)."),
+    info(title = "kinserve", description = "Forward, velocity and inverse kinematics of serial robots (Denavit–Hartenberg tables)."),
     paths(
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, ws::stream, metrics_text,
+        handlers::fk, handlers::fk_batch, velocity::jacobian, velocity::jacobian_batch,
+        velocity::ik, velocity::ik_batch, ws::stream, metrics_text,
         export::closed_form, export::urdf
     ),
-    components(schemas(WsRequest, dto::WsReply)),
+    components(schemas(WsRequest, dto::WsReply, dto::WsJacobian, dto::WsIk)),
     modifiers(&SecurityAddon, &Complete)
 )]
 pub struct ApiDoc;
@@ -161,16 +166,65 @@ async fn require_token(State(state): State<AppState>, req: Request, next: Next) 
         *req.method(),
         Method::POST | Method::PUT | Method::DELETE | Method::PATCH
     );
-    if mutating
-        && let Err(e) = state.service.authorize_header(
-            req.headers()
-                .get(header::AUTHORIZATION)
-                .and_then(|v| v.to_str().ok()),
-        )
+    if !mutating {
+        return next.run(req).await;
+    }
+    let unread = has_body(req.headers());
+    if let Err(e) = check_origin(req.headers(), &state.settings.cors_origins, true)
+        .and_then(|()| authorization(req.headers()))
+        .and_then(|token| state.service.authorize_header(token))
     {
-        return refuse_unread(has_body(req.headers()), ApiError(e).into_response());
+        return refuse_unread(unread, ApiError(e).into_response());
     }
     next.run(req).await
+}
+
+/// The one `Authorization` header of a request (two or more are malformed:
+/// which one counts would be a guess).
+fn authorization(headers: &header::HeaderMap) -> Result<Option<&str>, Error> {
+    let mut all = headers.get_all(header::AUTHORIZATION).iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(Error::malformed_field(
+            "authorization",
+            "send one Authorization header, not several",
+        ));
+    }
+    Ok(first.and_then(|v| v.to_str().ok()))
+}
+
+/// Secure by default: a browser request from another origin (its `Origin`
+/// header is neither this server nor one of `--cors-origin`) may not write
+/// to the registry (`write`), and, once `--cors-origin` is set, may not open
+/// a WebSocket either. Requests without `Origin` (non-browser clients) pass.
+pub(crate) fn check_origin(
+    headers: &header::HeaderMap,
+    allowed: &[String],
+    write: bool,
+) -> Result<(), Error> {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else {
+        return Ok(());
+    };
+    let host = headers
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let same = origin
+        .split_once("://")
+        .is_some_and(|(_, rest)| !host.is_empty() && rest == host);
+    if same || allowed.iter().any(|a| a == origin) || (!write && allowed.is_empty()) {
+        return Ok(());
+    }
+    let what = if write {
+        "registry writes"
+    } else {
+        "WebSocket streams"
+    };
+    Err(Error::Forbidden {
+        detail: format!(
+            "{what} from the web origin '{origin}' are refused: start the server with --cors-origin {origin} to allow it"
+        ),
+    })
 }
 
 /// Admission control and request timeout: past the concurrency limit a request
@@ -198,6 +252,10 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/fk",
         "/v1/robots/{name}/fk/batch",
         "/v1/robots/{name}/fk/stream",
+        "/v1/robots/{name}/jacobian",
+        "/v1/robots/{name}/jacobian/batch",
+        "/v1/robots/{name}/ik",
+        "/v1/robots/{name}/ik/batch",
         "/v1/robots/{name}/closed-form",
         "/v1/robots/{name}/urdf",
         "/v1/robots/{name}",
@@ -317,7 +375,11 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::RETRY_AFTER,
         ]);
     if origins.is_empty() {
-        layer.allow_origin(Any)
+        // Any web page may read and compute FK; registry writes (PUT, DELETE,
+        // and POST /v1/robots, refused by `check_origin`) need --cors-origin.
+        layer
+            .allow_origin(Any)
+            .allow_methods([Method::GET, Method::POST, Method::OPTIONS])
     } else {
         let origins: Vec<HeaderValue> = origins
             .iter()
@@ -355,7 +417,20 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/fk/batch",
             axum::routing::post(handlers::fk_batch),
         )
-        .route("/v1/robots/{name}/fk/stream", get(ws::stream));
+        .route("/v1/robots/{name}/fk/stream", get(ws::stream))
+        .route(
+            "/v1/robots/{name}/jacobian",
+            axum::routing::post(velocity::jacobian),
+        )
+        .route(
+            "/v1/robots/{name}/jacobian/batch",
+            axum::routing::post(velocity::jacobian_batch),
+        )
+        .route("/v1/robots/{name}/ik", axum::routing::post(velocity::ik))
+        .route(
+            "/v1/robots/{name}/ik/batch",
+            axum::routing::post(velocity::ik_batch),
+        );
     let export = Router::new()
         .route("/v1/robots/{name}/closed-form", get(export::closed_form))
         .route("/v1/robots/{name}/urdf", get(export::urdf));

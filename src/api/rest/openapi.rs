@@ -25,6 +25,14 @@ const TAGS: &[(&str, &str)] = &[
         "robots",
         "The robot registry: list, read, register, replace, delete.",
     ),
+    (
+        "velocity",
+        "Velocity kinematics: the geometric Jacobian with manipulability, condition number and singularity, one configuration or a batch.",
+    ),
+    (
+        "ik",
+        "Inverse kinematics: joints that reach a target pose (numerical, limits respected), one target or a batch tracking a path.",
+    ),
     ("health", "Liveness and readiness probes."),
     ("operations", "Metrics for operators."),
 ];
@@ -95,6 +103,9 @@ pub fn describe(code: &str) -> &'static str {
             "Malformed request: the body cannot be read into the request's schema (not JSON, wrong type, unknown or missing field, unknown enum value) or the name is empty."
         }
         "401" => "Missing or wrong bearer token (only when the server has an API token).",
+        "403" => {
+            "Forbidden: a registry write (or, with --cors-origin set, a WebSocket) from a web page of an origin not allowed by --cors-origin."
+        }
         "404" => "No robot of that name (the nearest names are suggested) or no such route.",
         "409" => "Conflict: the name is taken, or the robot is built in and read-only.",
         "412" => {
@@ -110,7 +121,9 @@ pub fn describe(code: &str) -> &'static str {
         "503" => {
             "Overloaded (retry after `Retry-After`), timed out, starting or shutting down, or (writes) the registry database is unavailable."
         }
-        "507" => "Storage failure: the robot could not be persisted; nothing changed.",
+        "507" => {
+            "Storage failure (nothing changed), or the registry holds --max-robots registered robots."
+        }
         _ => "See the status code.",
     }
 }
@@ -120,6 +133,9 @@ fn problem_example(code: &str) -> Option<Value> {
     let e = match code {
         "400" => Error::malformed_field("joints[1]", "invalid type: string \"x\", expected f64"),
         "401" => Error::Unauthenticated,
+        "403" => Error::Forbidden {
+            detail: "registry writes from the web origin 'https://stranger.example' are refused: start the server with --cors-origin https://stranger.example to allow it".into(),
+        },
         "404" => Error::NotFound {
             name: "Puma-560".into(),
             suggestions: vec!["puma560".into()],

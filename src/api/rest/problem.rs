@@ -5,6 +5,7 @@ use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::api::velocity::IkItem;
 use crate::error::Error;
 
 /// A field-level error inside a problem.
@@ -31,6 +32,10 @@ pub struct Problem {
     /// Field-level errors, whenever a field is at fault.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub errors: Vec<ProblemField>,
+    /// With `ik-not-converged`: the best attempt (joints in the request's
+    /// angle unit, within the joint limits) and its errors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub best_attempt: Option<IkItem>,
 }
 
 /// Status, problem kind and title of an error. Exhaustive: every error kind has its HTTP meaning here.
@@ -63,6 +68,12 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             "unauthenticated",
             "Authentication required",
         ),
+        Error::Forbidden { .. } => (StatusCode::FORBIDDEN, "forbidden", "Forbidden"),
+        Error::Full { .. } => (
+            StatusCode::INSUFFICIENT_STORAGE,
+            "registry-full",
+            "Registry full",
+        ),
         Error::TooLarge { .. } => (
             StatusCode::PAYLOAD_TOO_LARGE,
             "too-large",
@@ -87,6 +98,11 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             StatusCode::INSUFFICIENT_STORAGE,
             "storage",
             "Storage failure",
+        ),
+        Error::IkNotConverged { .. } => (
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "ik-not-converged",
+            "Inverse kinematics did not converge",
         ),
         Error::PreconditionFailed { .. } => (
             StatusCode::PRECONDITION_FAILED,
@@ -134,6 +150,10 @@ impl Problem {
             status: status.as_u16(),
             detail: e.to_string(),
             errors,
+            best_attempt: match e {
+                Error::IkNotConverged { best, .. } => Some(IkItem::from(best.as_ref())),
+                _ => None,
+            },
         }
     }
 }
@@ -158,6 +178,7 @@ impl Problem {
             status: status.as_u16(),
             detail,
             errors: Vec::new(),
+            best_attempt: None,
         }
     }
 }

@@ -200,6 +200,10 @@ macro_rules! reflection_suite {
                     "StreamForwardKinematics",
                     "GetClosedForm",
                     "GetUrdf",
+                    "Jacobian",
+                    "JacobianBatch",
+                    "InverseKinematics",
+                    "InverseKinematicsBatch",
                 ]
                 .into();
                 assert_eq!(methods, want);

@@ -3,7 +3,8 @@
 //! Every RPC of `kinematics.v1.KinematicsService` with its success path and every
 //! status code the issue names, health, reflection (v1 and v1alpha), the
 //! bidirectional stream (invalid message in the middle, slow reader, cancel,
-//! shutdown) and the registry shared with REST.
+//! shutdown), the registry shared with REST, and velocity / inverse kinematics
+//! (the same answers as REST and the WebSocket).
 //!
 //! Split by area; the shared helpers are in `crate::helpers`.
 
@@ -12,3 +13,4 @@ mod grpcurl;
 mod health;
 mod registry;
 mod stream;
+mod velocity;

@@ -59,6 +59,7 @@ pub(crate) fn stream_request(
         robot: robot.to_string(),
         joints: joints.to_vec(),
         options,
+        ..Default::default()
     }
 }
 

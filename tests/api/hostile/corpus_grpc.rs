@@ -316,6 +316,7 @@ async fn run_stream_cases(
             robot: case["robot"].as_str().unwrap().to_owned(),
             joints: case_joints(case),
             options: case_options(case),
+            ..Default::default()
         })
         .await
         .unwrap();

@@ -98,7 +98,7 @@ async fn x_request_id_is_echoed_or_generated() {
 }
 
 #[tokio::test]
-async fn cors_allows_any_origin_by_default() {
+async fn cors_allows_any_origin_to_read_and_compute_by_default() {
     let app = spawn_app().await;
     let r = app
         .client
@@ -132,8 +132,14 @@ async fn cors_allows_any_origin_by_default() {
         .to_str()
         .unwrap()
         .to_ascii_uppercase();
+    // Secure by default: reads and FK from any origin, no cross-origin
+    // registry writes unless --cors-origin names the origin (secure_defaults.rs).
     assert!(
-        methods.contains("PUT") && methods.contains("DELETE"),
+        methods.contains("GET") && methods.contains("POST"),
+        "{methods}"
+    );
+    assert!(
+        !methods.contains("PUT") && !methods.contains("DELETE"),
         "{methods}"
     );
 }
@@ -169,6 +175,10 @@ const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/robots/{name}/fk", &["post"]),
     ("/v1/robots/{name}/fk/batch", &["post"]),
     ("/v1/robots/{name}/fk/stream", &["get"]),
+    ("/v1/robots/{name}/jacobian", &["post"]),
+    ("/v1/robots/{name}/jacobian/batch", &["post"]),
+    ("/v1/robots/{name}/ik", &["post"]),
+    ("/v1/robots/{name}/ik/batch", &["post"]),
     ("/v1/robots/{name}/closed-form", &["get"]),
     ("/v1/robots/{name}/urdf", &["get"]),
 ];
@@ -234,6 +244,15 @@ async fn openapi_covers_every_route_and_schema() {
         "ProblemField",
         "WsRequest",
         "WsReply",
+        "JacobianRequest",
+        "JacobianBatchRequest",
+        "JacobianOutput",
+        "JacobianBatchOutput",
+        "IkSpec",
+        "IkBatchSpec",
+        "IkTargetSpec",
+        "IkOutput",
+        "IkBatchOutput",
         "ClosedForm",
         "SymbolicMatrix",
         "JointVariable",

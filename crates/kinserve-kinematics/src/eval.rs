@@ -1,0 +1,617 @@
+//! The evaluators of a compiled [`Program`] — single pose, single pose with every
+//! frame, batch — and their instantiation per [`Kernel`] (`#[target_feature]`
+//! copies of the same generic code, picked at run time).
+//!
+//! - Single pose: the joint angles of up to 8 joints and their sines and cosines
+//!   are computed together as whole vectors ([`joint_values`]), then one
+//!   [`step::apply`] per joint on a column-major 4×4 (each column one 4-wide
+//!   vector).
+//! - Frames: the same, emitting each DH row's frame from the state (precompiled
+//!   [`FrameOffset`]s say how).
+//! - Batch: blocks of 8 poses in structure-of-arrays form (every matrix entry an
+//!   8-wide vector: one AVX-512 register), one dispatch per joint per block.
+//!
+//! Depends on [`crate::program`], [`crate::step`], [`crate::sincos`] and
+//! [`crate::kernel`]. Unchecked by design, like the [`crate::Chain`] methods.
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several arrays in step; they vectorise as written"
+)]
+
+use std::mem::MaybeUninit;
+
+use crate::kernel::Kernel;
+use crate::lane::{Arr, Lane, Lane8};
+#[cfg(target_arch = "x86_64")]
+use crate::lane::{Ymm, Ymm2, Zmm};
+use crate::program::{CHUNK, Cols, FrameOffset, Lanes, Program, from_cols};
+use crate::sincos::{madd, sincos_lanes, sincos_poly_lanes};
+use crate::step::{self, State};
+use crate::transform::Transform;
+
+/// Poses per batch block.
+pub(crate) const LANES: usize = 8;
+
+/// `cos θ`, `sin θ`, `dz = d + q` (prismatic) and `q` of prismatic joints,
+/// for one chunk of [`CHUNK`] joints of one pose.
+struct JointValues {
+    c: [f64; CHUNK],
+    s: [f64; CHUNK],
+    dz: [f64; CHUNK],
+    qz: [f64; CHUNK],
+}
+
+/// Joint values `q[start..start + CHUNK]` (missing ones count as 0) turned into
+/// [`JointValues`], all lanes at once: `θ = q·scale + θ0` for revolute joints,
+/// one vectorised sine/cosine, then revolute/prismatic picked by the 1/0 lane
+/// masks (no branch).
+#[inline(always)]
+fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64) -> JointValues {
+    // Branch-free and call-free (a copy of the variable-length tail becomes a
+    // `memcpy` call): clamped loads, then zero where past the end.
+    let mut qb = [0.0; CHUNK];
+    if let Some(last) = q.len().checked_sub(1) {
+        for k in 0..CHUNK {
+            let v = q[(start + k).min(last)];
+            qb[k] = if start + k <= last { v } else { 0.0 };
+        }
+    }
+    let mut x = [0.0; CHUNK];
+    for k in 0..CHUNK {
+        x[k] = madd::<FMA>(qb[k], scale * l.rev[k], l.theta[k]);
+    }
+    let (sp, cp) = sincos_lanes::<FMA, CHUNK>(&x);
+    let mut v = JointValues {
+        c: [0.0; CHUNK],
+        s: [0.0; CHUNK],
+        dz: [0.0; CHUNK],
+        qz: [0.0; CHUNK],
+    };
+    for k in 0..CHUNK {
+        v.c[k] = madd::<FMA>(l.rev[k], cp[k], l.pri[k] * l.ct[k]);
+        v.s[k] = madd::<FMA>(l.rev[k], sp[k], l.pri[k] * l.st[k]);
+        v.qz[k] = qb[k] * l.pri[k];
+        v.dz[k] = l.dz[k] + v.qz[k];
+    }
+    v
+}
+
+/// A 4-lane column of the single-pose state: [`Lane`] plus loading and storing.
+pub(crate) trait Col4: Lane {
+    /// Loads four doubles.
+    ///
+    /// # Safety
+    /// The CPU must support the target features the type's operations use
+    /// (none for [`Arr`]; AVX2 and FMA for `Ymm`).
+    unsafe fn load(a: &[f64; 4]) -> Self;
+    /// The four doubles.
+    fn store(self) -> [f64; 4];
+    /// Writes the transform with columns `cols` to `out`.
+    ///
+    /// # Safety
+    /// `out` must be valid for writes of one `Transform` (it may be uninitialised).
+    #[inline(always)]
+    unsafe fn store_transform(cols: &[Self; 4], out: *mut Transform) {
+        let t = from_cols(&[
+            cols[0].store(),
+            cols[1].store(),
+            cols[2].store(),
+            cols[3].store(),
+        ]);
+        // SAFETY: by this function's contract.
+        unsafe { out.write(t) };
+    }
+}
+
+impl<const FMA: bool> Col4 for Arr<FMA, 4> {
+    #[inline(always)]
+    unsafe fn load(a: &[f64; 4]) -> Self {
+        Arr(*a)
+    }
+    #[inline(always)]
+    fn store(self) -> [f64; 4] {
+        self.0
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Col4 for Ymm {
+    #[inline(always)]
+    unsafe fn load(a: &[f64; 4]) -> Self {
+        // SAFETY: forwarded from this function's own contract.
+        unsafe { Ymm::load(a) }
+    }
+    #[inline(always)]
+    fn store(self) -> [f64; 4] {
+        Ymm::store(self)
+    }
+    #[inline(always)]
+    unsafe fn store_transform(cols: &[Self; 4], out: *mut Transform) {
+        // SAFETY: forwarded from this function's own contract.
+        unsafe { Ymm::store_transform(cols, out) }
+    }
+}
+
+/// # Safety
+/// See [`Col4::load`].
+#[inline(always)]
+unsafe fn load_cols<V: Col4>(c: &Cols) -> [V; 4] {
+    // SAFETY: forwarded from this function's own contract.
+    unsafe {
+        [
+            V::load(&c[0]),
+            V::load(&c[1]),
+            V::load(&c[2]),
+            V::load(&c[3]),
+        ]
+    }
+}
+
+#[inline(always)]
+fn transform_of<V: Col4>(m: &[V; 4]) -> Transform {
+    let mut t = MaybeUninit::<Transform>::uninit();
+    // SAFETY: `t` is valid for writes and fully written by `store_transform`.
+    unsafe {
+        V::store_transform(m, t.as_mut_ptr());
+        t.assume_init()
+    }
+}
+
+/// World pose of the tool tip (see [`crate::Chain::forward`]).
+///
+/// # Safety
+/// See [`Col4::load`].
+#[inline(always)]
+unsafe fn forward<const FMA: bool, V: Col4>(p: &Program, q: &[f64], scale: f64) -> Transform {
+    // SAFETY: forwarded from this function's own contract.
+    let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
+    for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
+        let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
+        for (k, st) in steps.iter().enumerate().take(CHUNK) {
+            step::apply::<V, 1>(
+                st,
+                &mut m,
+                V::splat(v.c[k]),
+                V::splat(v.s[k]),
+                V::splat(v.dz[k]),
+            );
+        }
+    }
+    transform_of(&m[0])
+}
+
+/// `N = prev · Rz(θ) · Tz(qz)`: the state right after a joint, before its constant.
+#[inline(always)]
+fn joint_part<V: Lane>(prev: &[V; 4], c: f64, s: f64, qz: f64) -> [V; 4] {
+    let [x, y, z, p] = *prev;
+    let (c, s) = (V::splat(c), V::splat(s));
+    [
+        x.madd(c, y.mul(s)),
+        x.nmadd(s, y.mul(c)),
+        z,
+        z.madd(V::splat(qz), p),
+    ]
+}
+
+/// `n · k` for rigid transforms (`k` column-major).
+#[inline(always)]
+fn mul_cols<V: Lane>(n: &[V; 4], k: &Cols) -> [V; 4] {
+    let mut out = *n;
+    for j in 0..4 {
+        let [a, b, c, _] = k[j];
+        let last = if j == 3 { n[3] } else { V::splat(0.0) };
+        out[j] = n[0].madd(
+            V::splat(a),
+            n[1].madd(V::splat(b), n[2].madd(V::splat(c), last)),
+        );
+    }
+    out
+}
+
+/// `n` translated by `t` in its own axes.
+#[inline(always)]
+fn translate<V: Lane>(n: &[V; 4], t: &[f64; 3]) -> [V; 4] {
+    let [a, b, c] = *t;
+    let p = n[0].madd(
+        V::splat(a),
+        n[1].madd(V::splat(b), n[2].madd(V::splat(c), n[3])),
+    );
+    [n[0], n[1], n[2], p]
+}
+
+/// Where the frames path puts each frame.
+pub(crate) trait FrameSink {
+    /// Where the next frame goes: valid for writes of one `Transform`.
+    fn next_slot(&mut self) -> *mut Transform;
+    /// Called once after the last frame.
+    fn finish(&mut self);
+}
+
+/// Frames handed to the callback at a time by [`Burst`].
+const FRAME_BURST: usize = 16;
+
+/// Collects frames and hands them to a callback in bursts, so the vector state
+/// of the frames path is not live across the opaque calls (a call per frame
+/// cost ~60 % more: spills around every call). Uninitialised, because
+/// initialising 16 poses per evaluation costs more than it saves.
+pub(crate) struct Burst<'a> {
+    buf: [MaybeUninit<Transform>; FRAME_BURST],
+    n: usize,
+    frame: &'a mut dyn FnMut(&Transform),
+}
+
+impl<'a> Burst<'a> {
+    pub(crate) fn new(frame: &'a mut dyn FnMut(&Transform)) -> Self {
+        Burst {
+            buf: [const { MaybeUninit::uninit() }; FRAME_BURST],
+            n: 0,
+            frame,
+        }
+    }
+
+    #[inline(never)]
+    fn flush(&mut self) {
+        for f in &self.buf[..self.n] {
+            // SAFETY: slots `0..n` were handed out by `next_slot` and written by the
+            // frames path before the next call (its contract).
+            (self.frame)(unsafe { f.assume_init_ref() });
+        }
+        self.n = 0;
+    }
+}
+
+impl FrameSink for Burst<'_> {
+    #[inline(always)]
+    fn next_slot(&mut self) -> *mut Transform {
+        if self.n == FRAME_BURST {
+            self.flush();
+        }
+        self.n += 1;
+        self.buf[self.n - 1].as_mut_ptr()
+    }
+    fn finish(&mut self) {
+        self.flush();
+    }
+}
+
+/// Writes frames into a slice, in order; frames beyond its end are dropped.
+pub(crate) struct SliceSink<'a> {
+    out: &'a mut [Transform],
+    n: usize,
+    spare: MaybeUninit<Transform>,
+}
+
+impl<'a> SliceSink<'a> {
+    pub(crate) fn new(out: &'a mut [Transform]) -> Self {
+        SliceSink {
+            out,
+            n: 0,
+            spare: MaybeUninit::uninit(),
+        }
+    }
+}
+
+impl FrameSink for SliceSink<'_> {
+    #[inline(always)]
+    fn next_slot(&mut self) -> *mut Transform {
+        let slot = match self.out.get_mut(self.n) {
+            Some(t) => t as *mut Transform,
+            None => self.spare.as_mut_ptr(),
+        };
+        self.n += 1;
+        slot
+    }
+    fn finish(&mut self) {}
+}
+
+/// Tool pose, putting every frame into `sink` (see [`crate::Chain::forward_frames_into`]).
+///
+/// # Safety
+/// See [`Col4::load`].
+#[inline(always)]
+unsafe fn forward_frames<const FMA: bool, V: Col4, S: FrameSink>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    sink: &mut S,
+) -> Transform {
+    for f in &p.lead_frames {
+        // SAFETY: `next_slot` is valid for writes of one `Transform`.
+        unsafe { sink.next_slot().write(*f) };
+    }
+    // SAFETY: forwarded from this function's own contract.
+    let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
+    for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
+        let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
+        for (k, st) in steps.iter().enumerate().take(CHUNK) {
+            let j = ci * CHUNK + k;
+            let offs = &p.frame_offsets[p.frame_start[j]..p.frame_start[j + 1]];
+            let prev = m[0];
+            step::apply::<V, 1>(
+                st,
+                &mut m,
+                V::splat(v.c[k]),
+                V::splat(v.s[k]),
+                V::splat(v.dz[k]),
+            );
+            for off in offs {
+                let t = match off {
+                    FrameOffset::AfterStep => m[0],
+                    FrameOffset::Translate(t) => {
+                        translate(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), t)
+                    }
+                    FrameOffset::General(kc) => {
+                        mul_cols(&joint_part(&prev, v.c[k], v.s[k], v.qz[k]), kc)
+                    }
+                };
+                // SAFETY: `next_slot` is valid for writes of one `Transform`.
+                unsafe { V::store_transform(&t, sink.next_slot()) };
+            }
+        }
+    }
+    sink.finish();
+    transform_of(&m[0])
+}
+
+/// Tool poses of many configurations (see [`crate::Chain::forward_batch`]).
+///
+/// # Safety
+/// See [`Lane8::load8`] and [`Col4::load`].
+#[inline(always)]
+unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) {
+    let dof = p.steps.len();
+    if dof == 0 {
+        // No joint: every (empty) configuration has the one constant pose.
+        out.fill(from_cols(&p.base));
+        return;
+    }
+    let count = (q.len() / dof).min(out.len());
+    let blocks = count / LANES;
+    for b in 0..blocks {
+        let (qb, ob) = (
+            &q[b * LANES * dof..(b + 1) * LANES * dof],
+            &mut out[b * LANES..(b + 1) * LANES],
+        );
+        // SAFETY: forwarded from this function's own contract.
+        if !unsafe { batch_block::<FMA, V>(p, qb, scale, ob) } {
+            // Rare: an angle beyond the polynomial's range; redo these poses one
+            // by one (the single path falls back to `std` per joint).
+            redo::<FMA>(p, q, scale, out, b * LANES..(b + 1) * LANES);
+        }
+    }
+    for i in blocks * LANES..count {
+        // SAFETY: forwarded from this function's own contract.
+        out[i] = unsafe { forward::<FMA, W>(p, &q[i * dof..(i + 1) * dof], scale) };
+    }
+}
+
+/// Poses `range` of a batch by the single-pose path (compiled without the
+/// kernel's target features: correct everywhere, and rare).
+#[cold]
+#[inline(never)]
+fn redo<const FMA: bool>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+    range: std::ops::Range<usize>,
+) {
+    let dof = p.steps.len();
+    for i in range {
+        // SAFETY: `Arr` needs no target feature.
+        out[i] = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
+    }
+}
+
+/// Eight poses in structure-of-arrays form: every entry of the 3×4 state is an
+/// 8-wide vector, so each step is whole-vector arithmetic; the joint kind is
+/// dispatched once per joint for all eight. No call inside, so the state stays
+/// in registers. Returns false if an angle needs `std` trigonometry (the poses
+/// are then wrong and the caller redoes them).
+///
+/// # Safety
+/// See [`Lane8::load8`].
+#[inline(always)]
+unsafe fn batch_block<const FMA: bool, V: Lane8>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) -> bool {
+    let dof = p.steps.len();
+    let cfg: [&[f64]; LANES] = std::array::from_fn(|k| &q[k * dof..(k + 1) * dof]);
+    let mut m: State<V, 3> = [[V::splat(0.0); 4]; 3];
+    for r in 0..3 {
+        for col in 0..4 {
+            m[r][col] = V::splat(p.base[col][r]);
+        }
+    }
+    let mut ok = true;
+    for (j, st) in p.steps.iter().enumerate().take(dof) {
+        let mut qv = [0.0; LANES];
+        for k in 0..LANES {
+            qv[k] = cfg[k][j];
+        }
+        let sc = scale * st.rev;
+        let mut x = [0.0; LANES];
+        for k in 0..LANES {
+            x[k] = madd::<FMA>(qv[k], sc, st.theta);
+        }
+        let (sp, cp, bad) = sincos_poly_lanes::<FMA, LANES>(&x);
+        ok &= !bad;
+        let (mut c, mut s, mut dz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for k in 0..LANES {
+            c[k] = madd::<FMA>(st.rev, cp[k], st.pri * st.ct);
+            s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
+            dz[k] = st.c[3][2] + qv[k] * st.pri;
+        }
+        // SAFETY: forwarded from this function's own contract.
+        let (c, s, dz) = unsafe { (V::load8(&c), V::load8(&s), V::load8(&dz)) };
+        step::apply::<V, 3>(st, &mut m, c, s, dz);
+    }
+    // Out of the vectors once (so the loop above keeps them in registers), then
+    // one pose per lane.
+    let mut e = [[[0.0; LANES]; 4]; 3];
+    for r in 0..3 {
+        for col in 0..4 {
+            e[r][col] = m[r][col].store8();
+        }
+    }
+    for (k, o) in out.iter_mut().enumerate().take(LANES) {
+        *o = Transform {
+            rotation: [
+                [e[0][0][k], e[0][1][k], e[0][2][k]],
+                [e[1][0][k], e[1][1][k], e[1][2][k]],
+                [e[2][0][k], e[2][1][k], e[2][2][k]],
+            ],
+            translation: [e[0][3][k], e[1][3][k], e[2][3][k]],
+        };
+    }
+    ok
+}
+
+/// One `#[target_feature]` copy of each evaluator per x86_64 kernel. There is no
+/// AVX-512 copy of the frames path: it was ~20 % slower than the AVX2 copy
+/// (measured on the project machine), and a frame is one 4-wide column set, so
+/// AVX-512 has nothing to add; [`Kernel::Avx512`] runs the AVX2 copy.
+macro_rules! instantiate {
+    ($name:ident, $features:literal, $batch:ty $(, $frames:ident)?) => {
+        #[cfg(target_arch = "x86_64")]
+        mod $name {
+            use super::*;
+
+            #[target_feature(enable = $features)]
+            pub(super) fn forward(p: &Program, q: &[f64], scale: f64) -> Transform {
+                // SAFETY: this function only runs on a CPU with the features above
+                // (its callers check), which include what `Ymm` needs.
+                unsafe { super::forward::<true, Ymm>(p, q, scale) }
+            }
+
+            $(
+            #[target_feature(enable = $features)]
+            pub(super) fn $frames(
+                p: &Program,
+                q: &[f64],
+                scale: f64,
+                sink: &mut Sink<'_>,
+            ) -> Transform {
+                // SAFETY: as in `forward`.
+                unsafe {
+                    match sink {
+                        Sink::Burst(s) => super::forward_frames::<true, Ymm, _>(p, q, scale, s),
+                        Sink::Slice(s) => super::forward_frames::<true, Ymm, _>(p, q, scale, s),
+                    }
+                }
+            }
+            )?
+
+            #[target_feature(enable = $features)]
+            pub(super) fn forward_batch(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+                // SAFETY: as in `forward`.
+                unsafe { super::forward_batch::<true, $batch, Ymm>(p, q, scale, out) }
+            }
+        }
+    };
+}
+
+instantiate!(avx2, "avx2,fma", Ymm2, forward_frames);
+instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
+
+/// Single pose on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
+#[inline]
+pub(crate) unsafe fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
+    match kernel {
+        // SAFETY: `Arr` needs no target feature.
+        Kernel::Portable => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
+        Kernel::Avx2Fma => unsafe { avx2::forward(p, q, scale) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller guarantees the CPU supports Avx512: every feature enabled.
+        Kernel::Avx512 => unsafe { avx512::forward(p, q, scale) },
+        #[cfg(not(target_arch = "x86_64"))]
+        // SAFETY: `Arr` needs no target feature.
+        _ => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
+    }
+}
+
+/// Where the frames path puts the frames (one dispatch per evaluation).
+#[allow(
+    clippy::large_enum_variant,
+    reason = "lives on the stack for one evaluation; boxing the burst buffer would allocate"
+)]
+pub(crate) enum Sink<'a> {
+    /// To a callback, in bursts.
+    Burst(Burst<'a>),
+    /// Into a slice.
+    Slice(SliceSink<'a>),
+}
+
+/// The portable frames path into `sink`.
+fn frames_portable(p: &Program, q: &[f64], scale: f64, sink: &mut Sink<'_>) -> Transform {
+    // SAFETY: `Arr` needs no target feature.
+    unsafe {
+        match sink {
+            Sink::Burst(s) => forward_frames::<false, Arr<false, 4>, _>(p, q, scale, s),
+            Sink::Slice(s) => forward_frames::<false, Arr<false, 4>, _>(p, q, scale, s),
+        }
+    }
+}
+
+/// Frames on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
+pub(crate) unsafe fn forward_frames_on(
+    kernel: Kernel,
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    sink: &mut Sink<'_>,
+) -> Transform {
+    match kernel {
+        Kernel::Portable => frames_portable(p, q, scale, sink),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma or Avx512, so
+        // avx2 and fma (Avx512 implies both; see `instantiate!` for why it runs this copy).
+        Kernel::Avx2Fma | Kernel::Avx512 => unsafe { avx2::forward_frames(p, q, scale, sink) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => frames_portable(p, q, scale, sink),
+    }
+}
+
+/// Batch on `kernel`.
+///
+/// # Safety
+/// The CPU must support `kernel` ([`Kernel::is_supported`]).
+pub(crate) unsafe fn forward_batch_on(
+    kernel: Kernel,
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+    out: &mut [Transform],
+) {
+    match kernel {
+        // SAFETY: `Arr` needs no target feature.
+        Kernel::Portable => unsafe {
+            forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out)
+        },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
+        Kernel::Avx2Fma => unsafe { avx2::forward_batch(p, q, scale, out) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller guarantees the CPU supports Avx512: every feature enabled.
+        Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
+        #[cfg(not(target_arch = "x86_64"))]
+        // SAFETY: `Arr` needs no target feature.
+        _ => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out) },
+    }
+}

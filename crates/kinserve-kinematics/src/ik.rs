@@ -1,0 +1,433 @@
+//! Numerical inverse kinematics (feature `ik`): which joint values put the
+//! tool at a target pose.
+//!
+//! Owns [`IkSolver`], its [`IkOptions`] and the [`IkSolution`] it returns.
+//! Damped least squares with Levenberg–Marquardt damping on the geometric
+//! Jacobian ([`Chain::jacobian_into`]): each step solves
+//! `(J Jᵀ + λ I) y = e`, `Δq = Jᵀ y` with nalgebra's Cholesky factorisation
+//! (6×6, or 3×3 in position-only mode, whatever the number of joints), is
+//! projected onto the joint limits, and is kept only if it lowers the error
+//! (λ shrinks tenfold after a kept step and grows tenfold after a refused one).
+//! An attempt that stalls — λ too large to move, no real progress for a while,
+//! or out of iterations — is followed by a restart from a pseudo-random
+//! in-limit configuration drawn from a fixed seed, so every answer is
+//! deterministic (unless the time cap cuts a solve short). Every answer, converged or not, is within the joint limits.
+//!
+//! Units: joint values in rad (revolute) and the chain's length unit
+//! (prismatic); targets in the world frame in the chain's length unit;
+//! position error in that unit, orientation error in rad (the angle of
+//! `R_target · Rᵀ`). Depends on the chain and transform modules and nalgebra;
+//! must not depend on serde or any other kinserve crate.
+
+use std::f64::consts::PI;
+use std::time::Instant;
+
+use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
+
+use crate::chain::{Chain, JointKind};
+use crate::jacobian::JacobianFrame;
+use crate::transform::Transform;
+
+/// Default convergence tolerance: 1e-9 in the chain's length unit for the
+/// position and 1e-9 rad for the orientation.
+pub const DEFAULT_TOLERANCE: f64 = 1e-9;
+/// Default iterations per attempt.
+pub const DEFAULT_MAX_ITERATIONS: u32 = 100;
+/// Default number of restarts after the first attempt.
+pub const DEFAULT_RESTARTS: u32 = 100;
+/// Seed of the restart configurations (any fixed value keeps answers deterministic).
+pub const DEFAULT_RNG_SEED: u64 = 0x6b69_6e73_6572_7665;
+
+/// Initial and smallest damping (relative to the mean diagonal of `J Jᵀ`).
+const LAMBDA_START: f64 = 1e-3;
+const LAMBDA_MIN: f64 = 1e-12;
+/// Damping past which an attempt is given up (the error cannot go down).
+const LAMBDA_MAX: f64 = 1e8;
+/// Kept steps in a row that each remove less than [`SLOW_RATIO`] of the
+/// error before an attempt counts as stalled.
+const SLOW_STEPS: u32 = 8;
+const SLOW_RATIO: f64 = 0.1;
+
+/// How to solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IkOptions {
+    /// Match the position only (orientation free): for arms with fewer than
+    /// 6 joints or when orientation does not matter.
+    pub position_only: bool,
+    /// Converged when the position error ≤ `tolerance` (length unit) and,
+    /// unless `position_only`, the orientation error ≤ `tolerance` (rad).
+    pub tolerance: f64,
+    /// Iterations per attempt.
+    pub max_iterations: u32,
+    /// Attempts after the first, each from a new start configuration.
+    pub restarts: u32,
+    /// Give up (answering the best attempt so far) at this instant.
+    pub deadline: Option<Instant>,
+    /// Seed of the restart configurations.
+    pub rng_seed: u64,
+}
+
+impl Default for IkOptions {
+    fn default() -> Self {
+        IkOptions {
+            position_only: false,
+            tolerance: DEFAULT_TOLERANCE,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            restarts: DEFAULT_RESTARTS,
+            deadline: None,
+            rng_seed: DEFAULT_RNG_SEED,
+        }
+    }
+}
+
+/// The answer of a solve: the solution, or the best attempt if none converged.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IkSolution {
+    /// Joint values (rad / length unit), always within the joint limits.
+    pub q: Vec<f64>,
+    /// Whether both errors are within the tolerance (position only: the position error).
+    pub converged: bool,
+    /// `|p_target − p|`, length unit.
+    pub position_error: f64,
+    /// Angle of `R_target · Rᵀ`, rad (reported in position-only mode too).
+    pub orientation_error: f64,
+    /// Iterations over all attempts.
+    pub iterations: u32,
+    /// Attempts made (1 + restarts used).
+    pub attempts: u32,
+    /// Tool pose at `q`.
+    pub pose: Transform,
+}
+
+/// Where a joint may go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Bound {
+    /// Within `[lo, hi]` (rad or length unit).
+    Limited(f64, f64),
+    /// An unlimited revolute joint (any angle; answers near the reference).
+    FreeAngle,
+    /// An unlimited prismatic joint (restarts draw from ±the chain's reach).
+    FreeLength,
+}
+
+/// An IK solver for one chain and its joint limits.
+#[derive(Clone, Debug)]
+pub struct IkSolver<'a> {
+    chain: &'a Chain,
+    bounds: Vec<Bound>,
+    reach: f64,
+}
+
+/// The buffers of one solve, allocated once.
+#[derive(Clone, Debug)]
+struct Work {
+    q: Vec<f64>,
+    trial_q: Vec<f64>,
+    step: Vec<f64>,
+    cur: Eval,
+    trial: Eval,
+}
+
+impl Work {
+    fn new(n: usize) -> Work {
+        let eval = || Eval {
+            columns: vec![[0.0; 6]; n],
+            error: [0.0; 6],
+            cost: f64::INFINITY,
+        };
+        Work {
+            q: vec![0.0; n],
+            trial_q: vec![0.0; n],
+            step: vec![0.0; n],
+            cur: eval(),
+            trial: eval(),
+        }
+    }
+}
+
+/// One evaluated configuration.
+#[derive(Clone, Debug)]
+struct Eval {
+    columns: Vec<[f64; 6]>,
+    /// `[p_target − p; ω]` with `exp(ω) = R_target Rᵀ`.
+    error: [f64; 6],
+    /// The squared norm minimised (position rows only in position-only mode).
+    cost: f64,
+}
+
+/// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
+#[derive(Clone, Debug)]
+struct Rng(u64);
+
+impl Rng {
+    fn next_f64(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The rotation vector `ω` (axis × angle, rad) of `R_target · Rᵀ`, exact for
+/// every angle: through the unit quaternion (Shepperd's method) and `atan2`.
+pub fn rotation_error(target: &Transform, pose: &Transform) -> [f64; 3] {
+    let (a, b) = (&target.rotation, &pose.rotation);
+    let m = Transform {
+        rotation: std::array::from_fn(|i| {
+            std::array::from_fn(|j| a[i][0] * b[j][0] + a[i][1] * b[j][1] + a[i][2] * b[j][2])
+        }),
+        translation: [0.0; 3],
+    };
+    let [w, x, y, z] = m.quaternion();
+    let s = (x * x + y * y + z * z).sqrt();
+    if s == 0.0 {
+        return [0.0; 3];
+    }
+    let k = 2.0 * s.atan2(w) / s;
+    [x * k, y * k, z * k]
+}
+
+fn norm3(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+impl<'a> IkSolver<'a> {
+    /// A solver for `chain` with `limits` per movable joint (`None`: no limit;
+    /// internal units). Missing entries count as unlimited.
+    pub fn new(chain: &'a Chain, limits: &[Option<(f64, f64)>]) -> IkSolver<'a> {
+        let bounds = chain
+            .joint_kinds()
+            .enumerate()
+            .map(|(i, kind)| match (limits.get(i).copied().flatten(), kind) {
+                (Some((lo, hi)), _) => Bound::Limited(lo, hi),
+                (None, JointKind::Prismatic) => Bound::FreeLength,
+                (None, _) => Bound::FreeAngle,
+            })
+            .collect();
+        let reach = chain
+            .dh_rows()
+            .map(|r| r.a.abs() + r.d.abs())
+            .sum::<f64>()
+            .max(1.0);
+        IkSolver {
+            chain,
+            bounds,
+            reach,
+        }
+    }
+
+    /// Number of joints solved for.
+    pub fn dof(&self) -> usize {
+        self.bounds.len()
+    }
+
+    /// Solves for `target` (world frame), starting from `seed` if given
+    /// (clamped into the limits) and otherwise from the middle of each
+    /// joint's range (0 where unlimited), then restarting as
+    /// [`IkOptions::restarts`] allows. Returns the first converged attempt, or
+    /// the attempt with the lowest error. Unlimited revolute joints are
+    /// answered within π of the seed (of 0 without one); limited joints whose
+    /// range spans more than a turn, as close to it as their limits allow.
+    pub fn solve(&self, target: &Transform, seed: Option<&[f64]>, opts: &IkOptions) -> IkSolution {
+        let n = self.dof();
+        let reference: Vec<f64> = match seed {
+            Some(s) => (0..n).map(|i| s.get(i).copied().unwrap_or(0.0)).collect(),
+            None => self.bounds.iter().map(|b| self.middle(*b)).collect(),
+        };
+        let mut rng = Rng(opts.rng_seed);
+        let mut w = Work::new(n);
+        w.q.copy_from_slice(&reference);
+        self.clamp(&mut w.q);
+        let mut best: Option<(Vec<f64>, f64)> = None;
+        let mut iterations = 0;
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let (done, cost) = self.attempt(target, &mut w, opts, &mut iterations);
+            // A converged attempt wins over any lower-cost unconverged one.
+            let cost = if done { f64::NEG_INFINITY } else { cost };
+            if best.as_ref().is_none_or(|(_, c)| cost < *c) {
+                best = Some((w.q.clone(), cost));
+            }
+            let out_of_time = opts.deadline.is_some_and(|d| Instant::now() >= d);
+            if done || attempts > opts.restarts || out_of_time {
+                break;
+            }
+            self.random_start(&mut w.q, &mut rng);
+        }
+        let mut q = best.map(|(q, _)| q).unwrap_or(reference.clone());
+        self.near_reference(&mut q, &reference);
+        let pose = self.chain.forward(&q, 1.0);
+        let position_error = norm3(&sub3(target.translation, pose.translation));
+        let orientation_error = norm3(&rotation_error(target, &pose));
+        let converged = position_error <= opts.tolerance
+            && (opts.position_only || orientation_error <= opts.tolerance);
+        IkSolution {
+            q,
+            converged,
+            position_error,
+            orientation_error,
+            iterations,
+            attempts,
+            pose,
+        }
+    }
+
+    /// One damped-least-squares run from `w.q` (updated in place to the best
+    /// configuration it reached). Returns whether it converged and its cost.
+    fn attempt(
+        &self,
+        target: &Transform,
+        w: &mut Work,
+        opts: &IkOptions,
+        iterations: &mut u32,
+    ) -> (bool, f64) {
+        self.eval(target, &w.q, opts.position_only, &mut w.cur);
+        let mut lambda = LAMBDA_START;
+        let mut slow = 0;
+        for _ in 0..opts.max_iterations {
+            if self.converged(&w.cur, opts) {
+                return (true, w.cur.cost);
+            }
+            if opts.deadline.is_some_and(|d| Instant::now() >= d) {
+                break;
+            }
+            *iterations += 1;
+            let moved = self.step(&w.cur, lambda, opts.position_only, &mut w.step);
+            if moved {
+                for ((t, x), d) in w.trial_q.iter_mut().zip(&w.q).zip(&w.step) {
+                    *t = x + d;
+                }
+                self.clamp(&mut w.trial_q);
+                self.eval(target, &w.trial_q, opts.position_only, &mut w.trial);
+            }
+            if moved && w.trial.cost < w.cur.cost {
+                let slow_step = w.trial.cost > SLOW_RATIO.mul_add(-w.cur.cost, w.cur.cost);
+                slow = if slow_step { slow + 1 } else { 0 };
+                std::mem::swap(&mut w.q, &mut w.trial_q);
+                std::mem::swap(&mut w.cur, &mut w.trial);
+                lambda = (lambda / 10.0).max(LAMBDA_MIN);
+                if slow >= SLOW_STEPS {
+                    break;
+                }
+            } else {
+                lambda *= 10.0;
+                if lambda > LAMBDA_MAX {
+                    break;
+                }
+            }
+        }
+        (self.converged(&w.cur, opts), w.cur.cost)
+    }
+
+    fn converged(&self, e: &Eval, opts: &IkOptions) -> bool {
+        norm3(&e.error[..3]) <= opts.tolerance
+            && (opts.position_only || norm3(&e.error[3..]) <= opts.tolerance)
+    }
+
+    /// The damped step `Δq = Jᵀ (J Jᵀ + λ·s·I)⁻¹ e` into `out`, with `s` the
+    /// mean diagonal of `J Jᵀ` (so λ is unit-free). False if the system is
+    /// not positive definite (only for a zero Jacobian and tiny λ).
+    fn step(&self, e: &Eval, lambda: f64, position_only: bool, out: &mut [f64]) -> bool {
+        let cols = &e.columns;
+        let mut y = [0.0; 6];
+        if position_only {
+            let mut a = Matrix3::<f64>::zeros();
+            for c in cols {
+                let v = Vector3::new(c[0], c[1], c[2]);
+                a += v * v.transpose();
+            }
+            let s = (a.trace() / 3.0).max(f64::MIN_POSITIVE);
+            a += Matrix3::identity() * (lambda * s);
+            let b = Vector3::new(e.error[0], e.error[1], e.error[2]);
+            let Some(chol) = a.cholesky() else {
+                return false;
+            };
+            y[..3].copy_from_slice(chol.solve(&b).as_slice());
+        } else {
+            let mut a = Matrix6::<f64>::zeros();
+            for c in cols {
+                let v = Vector6::from_row_slice(c);
+                a += v * v.transpose();
+            }
+            let s = (a.trace() / 6.0).max(f64::MIN_POSITIVE);
+            a += Matrix6::identity() * (lambda * s);
+            let b = Vector6::from_row_slice(&e.error);
+            let Some(chol) = a.cholesky() else {
+                return false;
+            };
+            y.copy_from_slice(chol.solve(&b).as_slice());
+        }
+        for (o, c) in out.iter_mut().zip(cols) {
+            *o = c.iter().zip(&y).map(|(j, y)| j * y).sum();
+        }
+        true
+    }
+
+    /// Pose, Jacobian and error at `q` into `out`.
+    fn eval(&self, target: &Transform, q: &[f64], position_only: bool, out: &mut Eval) {
+        let pose = self
+            .chain
+            .jacobian_into(q, 1.0, JacobianFrame::Base, &mut out.columns);
+        let p = sub3(target.translation, pose.translation);
+        let w = rotation_error(target, &pose);
+        out.error = [p[0], p[1], p[2], w[0], w[1], w[2]];
+        let rows = if position_only { 3 } else { 6 };
+        out.cost = out.error[..rows].iter().map(|x| x * x).sum();
+    }
+
+    fn middle(&self, b: Bound) -> f64 {
+        match b {
+            Bound::Limited(lo, hi) => 0.5 * (lo + hi),
+            _ => 0.0,
+        }
+    }
+
+    fn clamp(&self, q: &mut [f64]) {
+        for (x, b) in q.iter_mut().zip(&self.bounds) {
+            if let Bound::Limited(lo, hi) = *b {
+                *x = x.clamp(lo, hi);
+            }
+        }
+    }
+
+    fn random_start(&self, q: &mut [f64], rng: &mut Rng) {
+        for (x, b) in q.iter_mut().zip(&self.bounds) {
+            let u = rng.next_f64();
+            *x = match *b {
+                Bound::Limited(lo, hi) => lo + (hi - lo) * u,
+                Bound::FreeAngle => PI * (2.0 * u - 1.0),
+                Bound::FreeLength => self.reach * (2.0 * u - 1.0),
+            };
+        }
+    }
+
+    /// Moves each revolute joint by whole turns as close to `reference` as
+    /// its limits allow (the pose does not change).
+    fn near_reference(&self, q: &mut [f64], reference: &[f64]) {
+        let kinds = self.chain.joint_kinds();
+        for (((x, b), r), kind) in q.iter_mut().zip(&self.bounds).zip(reference).zip(kinds) {
+            if kind != JointKind::Revolute {
+                continue;
+            }
+            let turns = ((*r - *x) / (2.0 * PI)).round();
+            if turns == 0.0 {
+                continue;
+            }
+            let moved = *x + turns * 2.0 * PI;
+            let inside = match *b {
+                Bound::Limited(lo, hi) => (lo..=hi).contains(&moved),
+                _ => true,
+            };
+            if inside {
+                *x = moved;
+            }
+        }
+    }
+}
+
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}

@@ -1,0 +1,305 @@
+//! The lane vectors the evaluators compute with, behind one small trait
+//! ([`Lane`]) so that the DH step ([`crate::step`]) is written once:
+//!
+//! - [`Arr`]: `N` doubles as an array, element-wise loops that the compiler
+//!   vectorises for whatever target features the calling function has
+//!   (the batch path's 8-pose vectors; the portable single path);
+//! - [`Ymm`] (x86_64): one AVX register of 4 doubles via `std::arch`, for a
+//!   column of the single-pose 4×4. The arrays would do the same arithmetic,
+//!   but the compiler splits a column whose fourth lane is unused into a pair
+//!   and a scalar: twice the instructions on the hot path.
+//!
+//! `FMA` selects fused multiply-adds ([`crate::sincos::madd`]). Depends only on
+//! [`crate::sincos`].
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several arrays in step; they vectorise as written"
+)]
+
+use crate::sincos::madd;
+
+/// A vector of doubles with the operations of a DH step.
+pub(crate) trait Lane: Copy {
+    /// Every lane `x`.
+    fn splat(x: f64) -> Self;
+    /// `self · b`, lane by lane.
+    fn mul(self, b: Self) -> Self;
+    /// `self · b + c`, lane by lane (fused for the FMA kernels).
+    fn madd(self, b: Self, c: Self) -> Self;
+    /// `c − self · b`, lane by lane (fused for the FMA kernels).
+    fn nmadd(self, b: Self, c: Self) -> Self;
+    /// `−self` (a sign flip, exact).
+    fn neg(self) -> Self;
+}
+
+/// `N` doubles, element-wise (see the module docs).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Arr<const FMA: bool, const N: usize>(pub [f64; N]);
+
+impl<const FMA: bool, const N: usize> Lane for Arr<FMA, N> {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Arr([x; N])
+    }
+    #[inline(always)]
+    fn mul(self, b: Self) -> Self {
+        let mut o = [0.0; N];
+        for k in 0..N {
+            o[k] = self.0[k] * b.0[k];
+        }
+        Arr(o)
+    }
+    #[inline(always)]
+    fn madd(self, b: Self, c: Self) -> Self {
+        let mut o = [0.0; N];
+        for k in 0..N {
+            o[k] = madd::<FMA>(self.0[k], b.0[k], c.0[k]);
+        }
+        Arr(o)
+    }
+    #[inline(always)]
+    fn nmadd(self, b: Self, c: Self) -> Self {
+        let mut o = [0.0; N];
+        for k in 0..N {
+            o[k] = madd::<FMA>(-self.0[k], b.0[k], c.0[k]);
+        }
+        Arr(o)
+    }
+    #[inline(always)]
+    fn neg(self) -> Self {
+        let mut o = [0.0; N];
+        for k in 0..N {
+            o[k] = -self.0[k];
+        }
+        Arr(o)
+    }
+}
+
+/// An 8-lane vector of the batch path (one lane per pose): [`Lane`] plus
+/// loading and storing.
+pub(crate) trait Lane8: Lane {
+    /// Loads eight doubles.
+    ///
+    /// # Safety
+    /// The CPU must support the target features the type's operations use.
+    unsafe fn load8(a: &[f64; 8]) -> Self;
+    /// The eight doubles.
+    fn store8(self) -> [f64; 8];
+}
+
+impl<const FMA: bool> Lane8 for Arr<FMA, 8> {
+    #[inline(always)]
+    unsafe fn load8(a: &[f64; 8]) -> Self {
+        Arr(*a)
+    }
+    #[inline(always)]
+    fn store8(self) -> [f64; 8] {
+        self.0
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use ymm::{Ymm, Ymm2};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use zmm::Zmm;
+
+#[cfg(target_arch = "x86_64")]
+mod ymm {
+    use super::Lane;
+    #[allow(clippy::wildcard_imports)]
+    use crate::transform::Transform;
+    use std::arch::x86_64::{
+        __m256d, _mm_store_sd, _mm_storeu_pd, _mm256_castpd256_pd128, _mm256_extractf128_pd,
+        _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_permute2f128_pd,
+        _mm256_set1_pd, _mm256_storeu_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd, _mm256_xor_pd,
+    };
+
+    /// Four doubles in one AVX register, with fused multiply-add.
+    ///
+    /// Only built by [`Ymm::load`], which is `unsafe`: its caller promises the
+    /// CPU has AVX2 and FMA, which is what makes every method sound.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Ymm(__m256d);
+
+    impl Ymm {
+        /// Loads four doubles.
+        ///
+        /// # Safety
+        /// The CPU must support `avx2` and `fma` (the kernels that call this are
+        /// `#[target_feature(enable = "avx2,fma")]` and are only run after the check).
+        #[inline(always)]
+        pub(crate) unsafe fn load(a: &[f64; 4]) -> Ymm {
+            // SAFETY: `a` is 4 readable doubles; the caller guarantees AVX.
+            Ymm(unsafe { _mm256_loadu_pd(a.as_ptr()) })
+        }
+
+        /// Writes the rigid transform whose columns x, y, z, p are `cols`
+        /// (lane 3 unused) as a row-major [`Transform`]: a 4×4 transpose in
+        /// registers and four overlapping stores instead of twelve scalar ones.
+        ///
+        /// # Safety
+        /// `out` must be valid for writes of one `Transform` (it may be uninitialised).
+        #[inline(always)]
+        pub(crate) unsafe fn store_transform(cols: &[Ymm; 4], out: *mut Transform) {
+            let [Ymm(x), Ymm(y), Ymm(z), Ymm(p)] = *cols;
+            let base: *mut f64 = out.cast();
+            // SAFETY: `out` is writable (this function's contract); a `Ymm` exists
+            // only on a CPU with AVX (see `Ymm::load`).
+            // `Transform` is `repr(C)`: 12 contiguous doubles, rotation rows at
+            // 0, 3, 6 and the translation at 9; every store below stays inside
+            // them (each row store's fourth lane is overwritten by the next one,
+            // the last by the translation).
+            unsafe {
+                let xy_lo = _mm256_unpacklo_pd(x, y); // x0 y0 x2 y2
+                let xy_hi = _mm256_unpackhi_pd(x, y); // x1 y1 .. ..
+                let zp_lo = _mm256_unpacklo_pd(z, p); // z0 p0 z2 p2
+                let zp_hi = _mm256_unpackhi_pd(z, p); // z1 p1 .. ..
+                _mm256_storeu_pd(base, _mm256_permute2f128_pd::<0x20>(xy_lo, zp_lo));
+                _mm256_storeu_pd(base.add(3), _mm256_permute2f128_pd::<0x20>(xy_hi, zp_hi));
+                _mm256_storeu_pd(base.add(6), _mm256_permute2f128_pd::<0x31>(xy_lo, zp_lo));
+                _mm_storeu_pd(base.add(9), _mm256_castpd256_pd128(p));
+                _mm_store_sd(base.add(11), _mm256_extractf128_pd::<1>(p));
+            }
+        }
+
+        /// The four doubles.
+        #[inline(always)]
+        pub(crate) fn store(self) -> [f64; 4] {
+            let mut a = [0.0; 4];
+            // SAFETY: `a` is 4 writable doubles; a `Ymm` exists only on a CPU with AVX.
+            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
+            a
+        }
+    }
+
+    impl Lane for Ymm {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            // SAFETY: a `Ymm` is only used on a CPU with AVX2 and FMA (see `Ymm::load`).
+            Ymm(unsafe { _mm256_set1_pd(x) })
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Ymm(unsafe { _mm256_mul_pd(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn madd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`; FMA is part of the promise.
+            Ymm(unsafe { _mm256_fmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn nmadd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`; FMA is part of the promise.
+            Ymm(unsafe { _mm256_fnmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: as for `splat`.
+            Ymm(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+        }
+    }
+
+    /// Eight doubles in two AVX registers (the AVX2 batch path), with the
+    /// same promise as [`Ymm`].
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Ymm2(Ymm, Ymm);
+
+    impl Lane for Ymm2 {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            Ymm2(Ymm::splat(x), Ymm::splat(x))
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            Ymm2(self.0.mul(b.0), self.1.mul(b.1))
+        }
+        #[inline(always)]
+        fn madd(self, b: Self, c: Self) -> Self {
+            Ymm2(self.0.madd(b.0, c.0), self.1.madd(b.1, c.1))
+        }
+        #[inline(always)]
+        fn nmadd(self, b: Self, c: Self) -> Self {
+            Ymm2(self.0.nmadd(b.0, c.0), self.1.nmadd(b.1, c.1))
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            Ymm2(self.0.neg(), self.1.neg())
+        }
+    }
+
+    impl super::Lane8 for Ymm2 {
+        #[inline(always)]
+        unsafe fn load8(a: &[f64; 8]) -> Self {
+            let [a0, a1, a2, a3, a4, a5, a6, a7] = *a;
+            // SAFETY: forwarded from this function's own contract.
+            unsafe { Ymm2(Ymm::load(&[a0, a1, a2, a3]), Ymm::load(&[a4, a5, a6, a7])) }
+        }
+        #[inline(always)]
+        fn store8(self) -> [f64; 8] {
+            let [a0, a1, a2, a3] = self.0.store();
+            let [a4, a5, a6, a7] = self.1.store();
+            [a0, a1, a2, a3, a4, a5, a6, a7]
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod zmm {
+    use super::{Lane, Lane8};
+    use std::arch::x86_64::{
+        __m512d, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd, _mm512_set1_pd,
+        _mm512_storeu_pd, _mm512_xor_pd,
+    };
+
+    /// Eight doubles in one AVX-512 register, with fused multiply-add.
+    ///
+    /// Only built by [`Lane8::load8`] and [`Lane::splat`]; the kernels that use it are
+    /// `#[target_feature(enable = "avx512f,avx512dq,...")]` and only run after
+    /// the CPU check, which is what makes every method sound.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Zmm(__m512d);
+
+    impl Lane for Zmm {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            // SAFETY: a `Zmm` is only used on a CPU with AVX-512F and DQ (see the type docs).
+            Zmm(unsafe { _mm512_set1_pd(x) })
+        }
+        #[inline(always)]
+        fn mul(self, b: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_mul_pd(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn madd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_fmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn nmadd(self, b: Self, c: Self) -> Self {
+            // SAFETY: as for `splat`.
+            Zmm(unsafe { _mm512_fnmadd_pd(self.0, b.0, c.0) })
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: as for `splat` (the double xor is AVX-512DQ, part of the promise).
+            Zmm(unsafe { _mm512_xor_pd(self.0, _mm512_set1_pd(-0.0)) })
+        }
+    }
+
+    impl Lane8 for Zmm {
+        #[inline(always)]
+        unsafe fn load8(a: &[f64; 8]) -> Self {
+            // SAFETY: `a` is 8 readable doubles; the caller guarantees AVX-512F.
+            Zmm(unsafe { _mm512_loadu_pd(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store8(self) -> [f64; 8] {
+            let mut a = [0.0; 8];
+            // SAFETY: `a` is 8 writable doubles; a `Zmm` exists only on a CPU with AVX-512F.
+            unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
+            a
+        }
+    }
+}

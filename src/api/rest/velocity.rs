@@ -1,0 +1,226 @@
+//! REST handlers of velocity and inverse kinematics: `POST
+//! /v1/robots/{name}/jacobian`, `/jacobian/batch`, `/ik`, `/ik/batch`.
+//! Validate → call the service → convert back, like the FK handlers; IK runs
+//! on the blocking pool. Depends on the service, the model and `api::velocity`.
+
+use axum::Json;
+use axum::extract::State;
+
+use super::AppState;
+use super::dto::{JacobianBatchRequest, JacobianRequest};
+use super::extract::{JsonBody, RobotName};
+use super::problem::{ApiError, Problem};
+use crate::api::velocity::{
+    IkBatchOutput, IkItem, IkOutput, JacobianBatchOutput, JacobianItem, JacobianOutput,
+};
+use crate::model::{IkBatchSpec, IkSpec};
+
+type ApiResult<T> = Result<T, ApiError>;
+
+/// Geometric Jacobian of one configuration, with manipulability, condition
+/// number and singular flag. Columns are per rad (revolute) or per length
+/// unit (prismatic) whatever `angle_unit` the request used.
+#[utoipa::path(post, path = "/v1/robots/{name}/jacobian", tag = "velocity", request_body = JacobianRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "The Jacobian of the tool point in the asked frame, its measures and the tool pose", body = JacobianOutput,
+            example = json!({"robot": "planar_2dof", "length_unit": "m", "frame": "base",
+                "jacobian": [[-0.48977774788672046, -0.2897777478867205], [0.4240558750445318, 0.07764571353075628],
+                    [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
+                "manipulability": 0.08485281374238575, "condition_number": 5.835575728945763, "singular": false,
+                "pose": {"matrix": [[0.2588190451025209, -0.9659258262890682, 0.0, 0.4240558750445318],
+                        [0.9659258262890682, 0.2588190451025209, 0.0, 0.48977774788672046], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.4240558750445318, 0.48977774788672046, 0.0],
+                    "quaternion": {"w": 0.7933533402912353, "x": 0.0, "y": 0.0, "z": 0.6087614290087205},
+                    "rpy": [0.0, 0.0, 1.308996938995747]}})),
+        (status = 400, description = "Malformed JSON or wrong types", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: frame: unknown variant `world`, expected `base` or `tool`",
+                "errors": [{"field": "frame", "message": "unknown variant `world`, expected `base` or `tool`"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:not-found", "title": "Robot not found", "status": 404, "detail": "robot 'r2d2' not found"})),
+        (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413, "detail": "too large: request body is over the limit of 1048576 bytes"})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:unsupported-media-type", "title": "Unsupported media type", "status": 415, "detail": "unsupported media type: expected Content-Type application/json, got 'text/plain'"})),
+        (status = 422, description = "Wrong joint count or a value outside the limits", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: joints: robot 'planar_2dof' has 2 movable joints, got 3 values",
+                "errors": [{"field": "joints", "message": "robot 'planar_2dof' has 2 movable joints, got 3 values"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:overloaded", "title": "Server overloaded", "status": 503, "detail": "server overloaded, retry later"}))))]
+pub async fn jacobian(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<JacobianRequest>,
+) -> ApiResult<Json<JacobianOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let answer = state
+        .service
+        .jacobian(robot, &req.joints, &req.options(), req.frame)?;
+    Ok(Json(JacobianOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        result: JacobianItem::from(&answer),
+    }))
+}
+
+/// Jacobians of many configurations, in request order; one bad configuration
+/// fails the batch, naming it (`configurations[17][2]`).
+#[utoipa::path(post, path = "/v1/robots/{name}/jacobian/batch", tag = "velocity", request_body = JacobianBatchRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "One Jacobian with its measures and pose per configuration, in request order", body = JacobianBatchOutput,
+            example = json!({"robot": "planar_2dof", "length_unit": "m", "results": [{"frame": "tool",
+                "jacobian": [[0.0, 0.0], [0.7, 0.29999999999999993], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
+                "manipulability": 0.0, "condition_number": null, "singular": true,
+                "pose": {"matrix": [[1.0, 0.0, 0.0, 0.7], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.7, 0.0, 0.0], "quaternion": {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0}, "rpy": [0.0, 0.0, 0.0]}}]})),
+        (status = 400, description = "Malformed JSON or wrong types", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: configurations[0][1]: invalid type: string \"x\", expected f64",
+                "errors": [{"field": "configurations[0][1]", "message": "invalid type: string \"x\", expected f64"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:not-found", "title": "Robot not found", "status": 404, "detail": "robot 'r2d2' not found"})),
+        (status = 413, description = "More configurations than the batch limit, or body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413,
+                "detail": "too large: a batch holds at most 10000 configurations, got 10001",
+                "errors": [{"field": "configurations", "message": "a batch holds at most 10000 configurations, got 10001"}]})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:unsupported-media-type", "title": "Unsupported media type", "status": 415, "detail": "unsupported media type: expected Content-Type application/json, got 'text/plain'"})),
+        (status = 422, description = "A configuration with the wrong joint count or a value outside the limits", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: configurations[1][0]: 4 rad is outside the limits [-2.96706, 2.96706] rad of joint 'joint1'",
+                "errors": [{"field": "configurations[1][0]", "message": "4 rad is outside the limits [-2.96706, 2.96706] rad of joint 'joint1'"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:overloaded", "title": "Server overloaded", "status": 503, "detail": "server overloaded, retry later"}))))]
+pub async fn jacobian_batch(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<JacobianBatchRequest>,
+) -> ApiResult<Json<JacobianBatchOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let answers =
+        state
+            .service
+            .jacobian_batch(robot, &req.configurations, &req.options(), req.frame)?;
+    Ok(Json(JacobianBatchOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        results: answers.iter().map(JacobianItem::from).collect(),
+    }))
+}
+
+/// Inverse kinematics of one target: joints (in the request's angle unit,
+/// within the joint limits) that put the tool at the target. Numerical
+/// (damped least squares with deterministic restarts), capped in time; a
+/// target it cannot reach within the tolerance is a 422 `ik-not-converged`
+/// carrying the best attempt.
+#[utoipa::path(post, path = "/v1/robots/{name}/ik", tag = "ik", request_body = IkSpec,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "Converged: the joints, their errors against the target and the pose they give", body = IkOutput,
+            example = json!({"robot": "puma560", "length_unit": "m", "angle_unit": "deg",
+                "joints": [19.999999999800277, -29.99999999988741, 45.000000000011575, 9.999999999882096, 49.99999999966128, -19.9999999997149],
+                "converged": true, "position_error": 1.5098587065217456e-12, "orientation_error": 6.7977277891802485e-12, "iterations": 5,
+                "pose": {"matrix": [[0.4980868739048057, -0.34488317188420287, -0.79559101540605, 0.3161255029982524],
+                        [-0.06553301533922037, 0.8999065002559434, -0.43113073968072557, -0.04461960137726105],
+                        [0.8646472633070018, 0.2668780405881897, 0.4256303813257705, 0.878270798407736], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.3161255029982524, -0.04461960137726105, 0.878270798407736],
+                    "quaternion": {"w": 0.8401820867357443, "x": 0.20769568623535004, "y": -0.4940114485073618, "z": 0.0831219092132478},
+                    "rpy": [0.5600493649364693, -1.0444478148338856, -0.1308180589175547]}})),
+        (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: target.position: invalid length 2, expected an array of length 3",
+                "errors": [{"field": "target.position", "message": "invalid length 2, expected an array of length 3"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:not-found", "title": "Robot not found", "status": 404, "detail": "robot 'r2d2' not found"})),
+        (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413, "detail": "too large: request body is over the limit of 1048576 bytes"})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:unsupported-media-type", "title": "Unsupported media type", "status": 415, "detail": "unsupported media type: expected Content-Type application/json, got 'text/plain'"})),
+        (status = 422, description = "Invalid request (`invalid-input`, with field paths such as `target.matrix[3]` or `tolerance`), or a target not reached within the tolerance (`ik-not-converged`, with the best attempt)", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:ik-not-converged", "title": "Inverse kinematics did not converge", "status": 422,
+                "detail": "inverse kinematics did not converge: best attempt has position error 1.082e0 m, orientation error 1.017e-1 rad after 170 iterations",
+                "best_attempt": {"joints": [176.4802771001353, -5.610316775642131, 0.3762242550042261, -92.48713721774861, -111.96305121382099, -96.40982700719717],
+                    "converged": false, "position_error": 1.081721351577331, "orientation_error": 0.1016732021781089, "iterations": 170,
+                    "pose": {"matrix": [[0.9948370471320815, 0.003996838061649628, 0.10140648371297278, 0.9288876399735971],
+                            [0.04254226180718372, -0.923615270928858, -0.38095273626441, 0.03909610533614434],
+                            [0.09213797053250904, 0.3832999564212355, -0.9190167233481823, 0.16168835814823396], [0.0, 0.0, 0.0, 1.0]],
+                        "position": [0.9288876399735971, 0.03909610533614434, 0.16168835814823396],
+                        "quaternion": {"w": 0.1950673299498414, "x": 0.9794729502912679, "y": 0.011878607738731815, "z": 0.04940015295673227},
+                        "rpy": [2.746452676058684, -0.09226883719332134, 0.04273700734403348]}}})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:overloaded", "title": "Server overloaded", "status": 503, "detail": "server overloaded, retry later"}))))]
+pub async fn ik(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<IkSpec>,
+) -> ApiResult<Json<IkOutput>> {
+    let entry = state.service.robot(&name)?;
+    let angle_unit = req.angle_unit;
+    let answer = state.service.ik_blocking(entry.clone(), req).await?;
+    Ok(Json(IkOutput {
+        robot: entry.robot.name().to_string(),
+        length_unit: entry.robot.length_unit(),
+        angle_unit,
+        result: IkItem::from(&answer),
+    }))
+}
+
+/// Inverse kinematics of many targets, solved in order, each seeded with the
+/// previous converged answer (tracking a path). Every target is answered
+/// (`converged` says which were reached); the batch as a whole is capped in
+/// time, targets left when the cap runs out are answered unsolved.
+#[utoipa::path(post, path = "/v1/robots/{name}/ik/batch", tag = "ik", request_body = IkBatchSpec,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "One answer per target, in request order, converged or not", body = IkBatchOutput,
+            example = json!({"robot": "planar_2dof", "length_unit": "m", "angle_unit": "rad", "results": [
+                {"joints": [0.04323781905251354, 1.186399552468544], "converged": true, "position_error": 3.261475666182992e-11,
+                 "orientation_error": null, "iterations": 7,
+                 "pose": {"matrix": [[0.3345794784216446, -0.9423675358473999, 0.0, 0.4999999999746447],
+                        [0.9423675358473999, 0.3345794784216446, 0.0, 0.2999999999794858], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.4999999999746447, 0.2999999999794858, 0.0],
+                    "quaternion": {"w": 0.8168780442702707, "x": 0.0, "y": 0.0, "z": 0.5768104201461497}, "rpy": [0.0, 0.0, 1.2296373715210576]}},
+                {"joints": [0.0946322604796601, 1.1299924165992894], "converged": true, "position_error": 4.661523989577213e-11,
+                 "orientation_error": null, "iterations": 3,
+                 "pose": {"matrix": [[0.33929905565032625, -0.9406785587196067, 0.0, 0.4999999999642441],
+                        [0.9406785587196067, 0.33929905565032625, 0.0, 0.3199999999700919], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.4999999999642441, 0.3199999999700919, 0.0],
+                    "quaternion": {"w": 0.818321164229035, "x": 0.0, "y": 0.0, "z": 0.574761230577391}, "rpy": [0.0, 0.0, 1.2246246770789495]}}]})),
+        (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: targets[0].matrix: invalid length 3, expected an array of length 4",
+                "errors": [{"field": "targets[0].matrix", "message": "invalid length 3, expected an array of length 4"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:not-found", "title": "Robot not found", "status": 404, "detail": "robot 'r2d2' not found"})),
+        (status = 413, description = "More targets than the batch limit, or body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413,
+                "detail": "too large: a batch holds at most 10000 targets, got 10001",
+                "errors": [{"field": "targets", "message": "a batch holds at most 10000 targets, got 10001"}]})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:unsupported-media-type", "title": "Unsupported media type", "status": 415, "detail": "unsupported media type: expected Content-Type application/json, got 'text/plain'"})),
+        (status = 422, description = "Invalid request, with field paths such as `targets[3].quaternion`", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: targets[1].quaternion: is required unless position_only is true",
+                "errors": [{"field": "targets[1].quaternion", "message": "is required unless position_only is true"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:overloaded", "title": "Server overloaded", "status": 503, "detail": "server overloaded, retry later"}))))]
+pub async fn ik_batch(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<IkBatchSpec>,
+) -> ApiResult<Json<IkBatchOutput>> {
+    let entry = state.service.robot(&name)?;
+    let angle_unit = req.angle_unit;
+    let answers = state.service.ik_batch_blocking(entry.clone(), req).await?;
+    Ok(Json(IkBatchOutput {
+        robot: entry.robot.name().to_string(),
+        length_unit: entry.robot.length_unit(),
+        angle_unit,
+        results: answers.iter().map(IkItem::from).collect(),
+    }))
+}
