@@ -434,6 +434,7 @@ function solveIkTo(position) {
   const q = state.pose && state.pose.quaternion;
   if (!state.stream || !q || !position.every(Number.isFinite)) return;
   state.target = position.slice();
+  document.body.dataset.dragTarget = JSON.stringify(position);
   if (view) view.setTarget(position);
   state.stream.solveIk({
     target: { position, quaternion: { w: q.w, x: q.x, y: q.y, z: q.z } },
@@ -456,6 +457,7 @@ function handleIkReply(msg, ik) {
   d.ikTarget = JSON.stringify(ik && ik.target ? ik.target.position : null);
   if (msg && Array.isArray(msg.joints)) {
     d.ikResult = 'converged';
+    d.ikJoints = JSON.stringify(msg.joints);
     showIkStatus('');
     if (view) view.setGhost(null);
     state.values = msg.joints.slice();

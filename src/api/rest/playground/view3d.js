@@ -301,6 +301,17 @@ export class View3D {
     this.drawRobot(b);
     this.drawTarget(b);
     this.drawOverlay(gridStep);
+    // Where the tool handle is, for automation (and the browser test).
+    const t = this.toolOnScreen();
+    const d = this.canvas.dataset;
+    if (t) {
+      d.toolX = t[0].toFixed(1);
+      d.toolY = t[1].toFixed(1);
+    } else {
+      delete d.toolX;
+      delete d.toolY;
+    }
+    d.ghost = this.ghost ? 'shown' : '';
   }
 
   drawGrid(b) {
