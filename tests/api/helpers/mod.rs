@@ -6,6 +6,7 @@
 //! that uses one imports it by path.
 
 pub(crate) mod app;
+pub(crate) mod browser;
 pub(crate) mod checker;
 pub(crate) mod corpus;
 pub(crate) mod cross_protocol;

@@ -104,16 +104,26 @@ export async function putRobot(name, modelText, token) {
  * joints. `close()` stops it for good (used when the robot changes).
  */
 export class FkStream {
-  constructor(robotName, { onReply, onStatus } = {}) {
+  /**
+   * One WebSocket per robot, one message in flight, newest request wins.
+   * Three kinds of request share it, by priority: IK (`solveIk`), FK of the
+   * shown joints with the Jacobian (`update`), FK of a ghost configuration
+   * (`ghost`, the best attempt of a failed IK).
+   */
+  constructor(robotName, { onReply, onStatus, onIk, onGhost } = {}) {
     this.robotName = robotName;
     this.onReply = onReply || (() => {});
     this.onStatus = onStatus || (() => {});
+    this.onIk = onIk || (() => {});
+    this.onGhost = onGhost || (() => {});
     this.ws = null;
     this.closed = false;
     this.nextId = 1;
-    this.inFlight = null; // {id, joints}
+    this.inFlight = null; // {id, kind, joints?, ik?}
     this.latest = null; // newest joints asked for
     this.dirty = false; // latest not yet sent
+    this.ik = null; // newest IK request not yet sent
+    this.ghostJoints = null; // newest ghost FK not yet sent
     this.backoff = 250;
     this.timer = null;
     this.connect();
@@ -151,7 +161,7 @@ export class FkStream {
     ws.addEventListener('close', () => {
       if (this.ws !== ws) return;
       this.ws = null;
-      if (this.inFlight) this.dirty = true; // its reply is lost: resend the newest joints
+      if (this.inFlight && this.inFlight.kind === 'fk') this.dirty = true; // its reply is lost: resend the newest joints
       this.inFlight = null;
       if (this.closed) return;
       this.onStatus('closed');
@@ -182,9 +192,10 @@ export class FkStream {
     if (!msg || typeof msg !== 'object') msg = { error: { detail: 'Empty reply' } };
     const req = this.inFlight;
     this.inFlight = null;
-    const joints = req ? req.joints : null;
     try {
-      this.onReply(msg, joints);
+      if (req && req.kind === 'ik') this.onIk(msg, req.ik);
+      else if (req && req.kind === 'ghost') this.onGhost(msg, req.joints);
+      else this.onReply(msg, req ? req.joints : null);
     } finally {
       this.pump();
     }
@@ -197,19 +208,51 @@ export class FkStream {
     this.pump();
   }
 
+  /** Ask for IK: `ik` is the body of `POST …/ik` (seed and answer in degrees). */
+  solveIk(ik) {
+    this.ik = ik;
+    this.pump();
+  }
+
+  /** Ask for the frames of `joints` to draw as a ghost (degrees). */
+  ghost(joints) {
+    this.ghostJoints = joints.slice();
+    this.pump();
+  }
+
+  /** The next message to send, newest of the most urgent kind, or null. */
+  next(id) {
+    if (this.ik) {
+      const ik = this.ik;
+      this.ik = null;
+      return { req: { id, kind: 'ik', ik }, msg: { id, ik } };
+    }
+    if (this.dirty && this.latest) {
+      const joints = this.latest;
+      this.dirty = false;
+      return { req: { id, kind: 'fk', joints }, msg: { id, joints, angle_unit: 'deg', frames: true, jacobian: true } };
+    }
+    if (this.ghostJoints) {
+      const joints = this.ghostJoints;
+      this.ghostJoints = null;
+      return { req: { id, kind: 'ghost', joints }, msg: { id, joints, angle_unit: 'deg', frames: true } };
+    }
+    return null;
+  }
+
   pump() {
-    if (this.closed || !this.dirty || this.inFlight || !this.latest) return;
+    if (this.closed || this.inFlight) return;
     const ws = this.ws;
     if (!ws || ws.readyState !== WebSocket.OPEN) return;
     const id = this.nextId++;
-    const joints = this.latest;
-    this.inFlight = { id, joints };
-    this.dirty = false;
+    const out = this.next(id);
+    if (!out) return;
+    this.inFlight = out.req;
     try {
-      ws.send(JSON.stringify({ id, joints, angle_unit: 'deg', frames: true }));
+      ws.send(JSON.stringify(out.msg));
     } catch (err) {
       this.inFlight = null;
-      this.dirty = true;
+      if (out.req.kind === 'fk') this.dirty = true;
       this.onStatus('error', String(err && err.message ? err.message : err));
     }
   }

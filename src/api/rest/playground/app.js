@@ -24,6 +24,10 @@ const state = {
   gen: 0, // robot selection generation
   wsGen: 0, // workspace run generation
   fkCount: 0,
+  ikCount: 0,
+  pose: null, // last tool pose shown
+  target: null, // IK target position being dragged or nudged
+  maxManip: 0, // largest manipulability seen for this robot (gauge scale)
   baseOrigin: [0, 0, 0],
   fieldErrors: [], // last register field errors (for re-locating markers on edit)
   syntaxError: null,
@@ -243,10 +247,22 @@ async function selectRobot(name) {
   prefillEditor(model);
   if (view) view.setRobot({ unit: model.length_unit === 'mm' ? 'mm' : 'm', size: robotSize(model), baseOrigin: state.baseOrigin });
 
+  state.pose = null;
+  state.target = null;
+  state.maxManip = 0;
+  showIkStatus('');
   state.stream = new FkStream(name, {
     onReply: (msg, joints) => {
       if (gen !== state.gen) return;
       handleFkReply(msg, joints);
+    },
+    onIk: (msg, ik) => {
+      if (gen !== state.gen) return;
+      handleIkReply(msg, ik);
+    },
+    onGhost: (msg) => {
+      if (gen !== state.gen || !view) return;
+      if (msg && msg.pose) view.setGhost(Array.isArray(msg.frames) ? msg.frames : [], msg.pose);
     },
     onStatus: (s, detail) => {
       if (gen !== state.gen) return;
@@ -397,6 +413,89 @@ function requestFk() {
   if (state.stream) state.stream.update(state.values);
 }
 
+/** Shows joint values on the sliders (without sending them). */
+function setSliders(values) {
+  state.joints.forEach((j, i) => {
+    const r = $(`joint-${i}`);
+    const n = $(`joint-${i}-value`);
+    const v = values[i];
+    if (r) {
+      r.value = String(v);
+      r.setAttribute('aria-valuetext', `${v} ${j.kind === 'revolute' ? 'deg' : j.unit}`);
+    }
+    if (n) n.value = String(v);
+  });
+}
+
+// --------------------------------------------------------------------- IK --
+
+/** IK of the tool to `position`, keeping the shown orientation, seeded with the shown joints. */
+function solveIkTo(position) {
+  const q = state.pose && state.pose.quaternion;
+  if (!state.stream || !q || !position.every(Number.isFinite)) return;
+  state.target = position.slice();
+  document.body.dataset.dragTarget = JSON.stringify(position);
+  if (view) view.setTarget(position);
+  state.stream.solveIk({
+    target: { position, quaternion: { w: q.w, x: q.x, y: q.y, z: q.z } },
+    seed: state.values.slice(),
+    angle_unit: 'deg',
+    restarts: 10,
+  });
+}
+
+function nudgeTool(delta) {
+  const from = state.target || (state.pose && state.pose.position);
+  if (!Array.isArray(from)) return;
+  solveIkTo(from.map((v, k) => Number(v) + delta[k]));
+}
+
+function handleIkReply(msg, ik) {
+  state.ikCount += 1;
+  const d = document.body.dataset;
+  d.ikCount = String(state.ikCount);
+  d.ikTarget = JSON.stringify(ik && ik.target ? ik.target.position : null);
+  if (msg && Array.isArray(msg.joints)) {
+    d.ikResult = 'converged';
+    d.ikJoints = JSON.stringify(msg.joints);
+    showIkStatus('');
+    if (view) view.setGhost(null);
+    state.values = msg.joints.slice();
+    setSliders(state.values);
+    requestFk();
+  } else if (msg && msg.error && msg.error.best_attempt) {
+    d.ikResult = 'failed';
+    const b = msg.error.best_attempt;
+    showIkStatus(`IK failed: ${msg.error.detail || 'target not reached'} — best attempt drawn dashed.`, 'error');
+    if (state.stream && Array.isArray(b.joints)) state.stream.ghost(b.joints);
+  } else {
+    d.ikResult = 'error';
+    const e = (msg && msg.error) || {};
+    showIkStatus(`IK error: ${e.detail || e.title || 'unexpected reply'}`, 'error');
+  }
+}
+
+function showIkStatus(text, kind) {
+  const s = $('ik-status');
+  if (!s) return;
+  s.textContent = text;
+  s.dataset.kind = kind || '';
+}
+
+/** The manipulability gauge and the singularity warning from an FK reply with the Jacobian. */
+function showManipulability(msg) {
+  const m = Number(msg.manipulability);
+  if (!Number.isFinite(m)) return;
+  state.maxManip = Math.max(state.maxManip, m);
+  const meter = $('manip');
+  meter.value = state.maxManip > 0 ? m / state.maxManip : 0;
+  const c = msg.condition_number;
+  $('manip-value').textContent = `${fmt(m, 4)} · condition ${c === null || c === undefined ? '∞' : fmt(Number(c), 4)}`;
+  const near = msg.singular === true || c === null || Number(c) > 1e3;
+  $('singular-warning').hidden = !near;
+  document.body.dataset.singular = String(!!msg.singular);
+}
+
 // --------------------------------------------------------------- FK reply --
 
 function setWsStatus(s, detail) {
@@ -415,6 +514,8 @@ function handleFkReply(msg, joints) {
     hideFkError();
     document.body.classList.remove('fk-stale');
     showPose(msg.pose);
+    state.pose = msg.pose;
+    showManipulability(msg);
     const frames = Array.isArray(msg.frames) ? msg.frames : [];
     if (frames[0] && Array.isArray(frames[0].matrix)) {
       state.baseOrigin = [0, 1, 2].map((k) => Number(frames[0].matrix[k][3]) || 0);
@@ -733,9 +834,12 @@ async function register() {
 
 function init() {
   document.body.dataset.fkCount = '0';
+  document.body.dataset.ikCount = '0';
   const canvas = $('view');
   try {
     view = new View3D(canvas);
+    view.onToolDrag = solveIkTo;
+    view.onToolNudge = nudgeTool;
     if (!view.available) {
       view = null;
       canvas.replaceWith(el('p', { id: 'view', class: 'muted', text: '3D view unavailable: this browser has no Canvas 2D context.' }));

@@ -1,6 +1,9 @@
 // kinserve playground: a small 3D view of a serial chain, drawn with Canvas 2D.
 // Z is up. Orbit by dragging (mouse or touch), pan with shift/right drag,
 // zoom with the wheel or a pinch, keyboard: arrows orbit, +/- zoom, f fits.
+// Dragging the tool triad moves an IK target in the view plane (onToolDrag);
+// with the tool selected, alt+arrows and PageUp/PageDown nudge it (onToolNudge).
+// A failed IK's best attempt is drawn as a ghost (setGhost).
 
 const DEG = Math.PI / 180;
 
@@ -48,6 +51,11 @@ export class View3D {
     this.ctx = ctx;
     this.frames = []; // [{o,x,y,z}]
     this.tool = null;
+    this.ghost = null; // {frames, tool} of a failed IK's best attempt
+    this.target = null; // [x,y,z] of the IK target being dragged
+    this.toolSelected = false;
+    this.onToolDrag = null; // (position) => void, while the tool is dragged
+    this.onToolNudge = null; // (delta) => void, keys with the tool selected
     this.cloud = null; // Float64Array [x,y,z,...]
     this.unit = 'm';
     this.size = 1; // characteristic length of the robot
@@ -80,6 +88,9 @@ export class View3D {
     this.size = size > 0 && Number.isFinite(size) ? size : this.unit === 'mm' ? 1000 : 1;
     this.frames = [];
     this.tool = null;
+    this.ghost = null;
+    this.target = null;
+    this.toolSelected = false;
     this.cloud = null;
     const b = baseOrigin || [0, 0, 0];
     this.cam.target = [b[0], b[1], b[2] + this.size * 0.4];
@@ -97,6 +108,39 @@ export class View3D {
       this.fit();
     }
     this.redraw();
+  }
+
+  /** The best attempt of a failed IK, drawn ghosted (null clears it). */
+  setGhost(framePoses, toolPose) {
+    if (!framePoses) {
+      this.ghost = null;
+    } else {
+      const frames = framePoses.map((p) => frameOf(p && p.matrix)).filter(Boolean);
+      this.ghost = { frames, tool: toolPose ? frameOf(toolPose.matrix) : null };
+    }
+    this.redraw();
+  }
+
+  /** The IK target marker (null hides it). */
+  setTarget(p) {
+    this.target = Array.isArray(p) ? p.slice() : null;
+    this.redraw();
+  }
+
+  /** Screen position of the tool origin, or null. */
+  toolOnScreen() {
+    if (!this.tool) return null;
+    const b = this.basis();
+    const c = this.toCam(b, this.tool.o);
+    if (!this.ortho && c[2] < b.near) return null;
+    return this.toScreen(b, c);
+  }
+
+  /** World displacement of a screen drag (dx, dy px) at the tool's depth, in the view plane. */
+  dragDelta(dx, dy, at) {
+    const b = this.basis();
+    const k = 1 / this.pixelsPerUnit(b, this.toCam(b, at)[2]);
+    return add(scale(b.r, dx * k), scale(b.u, -dy * k));
   }
 
   /** Workspace cloud as an array of [x,y,z] (or null to clear). */
@@ -253,8 +297,21 @@ export class View3D {
 
     const gridStep = this.drawGrid(b);
     this.drawCloud(b);
+    if (this.ghost) this.drawGhost(b);
     this.drawRobot(b);
+    this.drawTarget(b);
     this.drawOverlay(gridStep);
+    // Where the tool handle is, for automation (and the browser test).
+    const t = this.toolOnScreen();
+    const d = this.canvas.dataset;
+    if (t) {
+      d.toolX = t[0].toFixed(1);
+      d.toolY = t[1].toFixed(1);
+    } else {
+      delete d.toolX;
+      delete d.toolY;
+    }
+    d.ghost = this.ghost ? 'shown' : '';
   }
 
   drawGrid(b) {
@@ -405,6 +462,43 @@ export class View3D {
     }
   }
 
+  /** The ghost: links and tool of the best attempt, dashed and translucent. */
+  drawGhost(b) {
+    const ctx = this.ctx;
+    const chain = this.ghost.frames.map((f) => f.o);
+    if (this.ghost.tool) chain.push(this.ghost.tool.o);
+    ctx.save();
+    ctx.setLineDash([6, 4]);
+    ctx.strokeStyle = 'rgba(200, 60, 40, 0.55)';
+    ctx.lineWidth = 3;
+    for (let i = 0; i + 1 < chain.length; i++) {
+      const s = this.segment(b, chain[i], chain[i + 1]);
+      if (!s) continue;
+      ctx.beginPath();
+      ctx.moveTo(s.a[0], s.a[1]);
+      ctx.lineTo(s.b[0], s.b[1]);
+      ctx.stroke();
+    }
+    ctx.restore();
+  }
+
+  /** A ring at the IK target, and a ring round the tool when it is selected. */
+  drawTarget(b) {
+    const ctx = this.ctx;
+    const ring = (p, color, r) => {
+      const c = this.toCam(b, p);
+      if (!this.ortho && c[2] < b.near) return;
+      const s = this.toScreen(b, c);
+      ctx.strokeStyle = color;
+      ctx.lineWidth = 2;
+      ctx.beginPath();
+      ctx.arc(s[0], s[1], r, 0, Math.PI * 2);
+      ctx.stroke();
+    };
+    if (this.target) ring(this.target, '#c0392b', 9);
+    if (this.toolSelected && this.tool) ring(this.tool.o, '#8a4b00', 14);
+  }
+
   drawOverlay(gridStep) {
     const ctx = this.ctx;
     const H = this.cssH;
@@ -430,7 +524,15 @@ export class View3D {
   installInput() {
     const c = this.canvas;
     c.addEventListener('pointerdown', (e) => {
-      this.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey });
+      const rect = c.getBoundingClientRect();
+      const t = this.toolOnScreen();
+      const onTool =
+        !!t && !!this.onToolDrag && e.button === 0 && !e.shiftKey && this.pointers.size === 0 &&
+        Math.hypot(e.clientX - rect.left - t[0], e.clientY - rect.top - t[1]) <= 16;
+      this.toolSelected = onTool;
+      const drag = onTool ? { at: this.tool.o.slice() } : null;
+      this.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey, drag });
+      if (onTool) this.redraw();
       try {
         c.setPointerCapture(e.pointerId);
       } catch {
@@ -459,7 +561,11 @@ export class View3D {
         this.pinch = d;
         return;
       }
-      if (p.button === 2 || p.button === 1 || e.shiftKey) this.pan(dx, dy);
+      if (p.drag) {
+        p.drag.at = add(p.drag.at, this.dragDelta(dx, dy, p.drag.at));
+        this.setTarget(p.drag.at);
+        this.onToolDrag(p.drag.at.slice());
+      } else if (p.button === 2 || p.button === 1 || e.shiftKey) this.pan(dx, dy);
       else this.orbit(dx, dy);
     });
     c.addEventListener(
@@ -474,7 +580,24 @@ export class View3D {
     c.addEventListener('contextmenu', (e) => e.preventDefault());
     c.addEventListener('keydown', (e) => {
       const k = e.key;
-      if (k === 'ArrowLeft') this.orbit(-20, 0);
+      const step = this.size * 0.01;
+      const nudge = {
+        ArrowLeft: [-step, 0, 0],
+        ArrowRight: [step, 0, 0],
+        ArrowUp: [0, step, 0],
+        ArrowDown: [0, -step, 0],
+        PageUp: [0, 0, step],
+        PageDown: [0, 0, -step],
+      }[k];
+      if (this.toolSelected && this.onToolNudge && nudge && (e.altKey || k.startsWith('Page'))) {
+        this.onToolNudge(nudge);
+        e.preventDefault();
+        return;
+      }
+      if (k === 'Escape' && this.toolSelected) {
+        this.toolSelected = false;
+        this.redraw();
+      } else if (k === 'ArrowLeft') this.orbit(-20, 0);
       else if (k === 'ArrowRight') this.orbit(20, 0);
       else if (k === 'ArrowUp') this.orbit(0, -20);
       else if (k === 'ArrowDown') this.orbit(0, 20);
