@@ -1,5 +1,5 @@
 //! Closed-form forward kinematics from the course notes (`shared/seeds/` beside the repository)
-//! against the library's FK (`Robot::fk_unchecked`) for the course robots in
+//! against the library's FK (`RobotExt::fk_unchecked` from kinserve-testkit) for the course robots in
 //! `robots/`.
 //!
 //! Every closed form written here was first checked numerically (numpy, 500
