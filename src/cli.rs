@@ -109,11 +109,7 @@ fn validate(files: &[std::path::PathBuf]) -> ExitCode {
 }
 
 fn fk(args: &FkArgs) -> ExitCode {
-    let robot = match load_robot(
-        args.robot.as_deref(),
-        args.model.as_deref(),
-        args.robots_dir.as_deref(),
-    ) {
+    let robot = match load_model(&args.which) {
         Ok(r) => r,
         Err(code) => return code,
     };

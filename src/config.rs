@@ -65,14 +65,10 @@ pub enum Command {
 
 /// Arguments of `kinserve fk`.
 #[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("which").required(true).args(["robot", "model"])))]
 pub struct FkArgs {
-    /// A built-in robot by name (or one from --robots-dir).
-    #[arg(long)]
-    pub robot: Option<String>,
-    /// A robot model file (JSON).
-    #[arg(long)]
-    pub model: Option<PathBuf>,
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
     /// Joint values, comma separated: rad (or deg with --deg) for revolute, model length unit for prismatic.
     #[arg(
         long,
@@ -90,9 +86,6 @@ pub struct FkArgs {
     /// Do not check joint limits.
     #[arg(long)]
     pub no_limits: bool,
-    /// A directory of robot files (JSON) that add to or override the built-in robots.
-    #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
-    pub robots_dir: Option<PathBuf>,
 }
 
 /// Arguments of `kinserve jacobian`.
