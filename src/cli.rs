@@ -278,22 +278,11 @@ fn ik(args: &IkArgs) -> ExitCode {
     }
 }
 
-/// The robot `args` names (a built-in by name, or a file); errors printed.
-fn load_model(args: &ModelArgs) -> Result<Robot, ExitCode> {
-    load_robot(
-        args.robot.as_deref(),
-        args.model.as_deref(),
-        args.robots_dir.as_deref(),
-    )
-}
-
 /// The one loader of the commands that work on a robot: a built-in by name
 /// (`--robots-dir` adds or overrides) or a model file; errors printed.
-fn load_robot(
-    robot: Option<&str>,
-    model: Option<&std::path::Path>,
-    robots_dir: Option<&std::path::Path>,
-) -> Result<Robot, ExitCode> {
+fn load_model(args: &ModelArgs) -> Result<Robot, ExitCode> {
+    let robots_dir = args.robots_dir.as_deref();
+    let (robot, model) = (args.robot.as_deref(), args.model.as_deref());
     let (label, loaded) = match (robot, model) {
         (Some(name), _) => {
             if let Err(m) = crate::model::validate_name(name) {
