@@ -321,21 +321,23 @@ impl Registry {
             PutMode::Create => Condition::Absent,
             PutMode::Upsert => cond,
         };
-        if self.map.load().get(&name).is_none() {
-            let registered = self
-                .map
-                .load()
-                .values()
-                .filter(|e| e.origin == Origin::Registered)
-                .count();
-            if registered >= self.max_registered {
-                return Err(Error::Full {
-                    detail: format!(
-                        "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
-                        self.max_registered
-                    ),
-                });
-            }
+        let full = {
+            // One snapshot, dropped before the (slow) store write below.
+            let snapshot = self.map.load();
+            snapshot.get(&name).is_none()
+                && snapshot
+                    .values()
+                    .filter(|e| e.origin == Origin::Registered)
+                    .count()
+                    >= self.max_registered
+        };
+        if full {
+            return Err(Error::Full {
+                detail: format!(
+                    "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
+                    self.max_registered
+                ),
+            });
         }
         let spec = robot.spec().clone();
         let result = self.write(
