@@ -96,7 +96,8 @@ pub enum Error {
     /// read-only data directory; nothing was changed (HTTP 507, gRPC UNAVAILABLE).
     #[error("storage failure: {detail}")]
     Storage {
-        /// What failed (no secrets, no absolute paths of the host beyond the data dir).
+        /// What failed, naming the file relative to the data directory
+        /// (`robots/<file>`): no secrets, no host paths.
         detail: String,
     },
     /// Inverse kinematics found no configuration within the tolerance: the

@@ -138,26 +138,64 @@ pub struct FileStore {
     dir: PathBuf,
 }
 
+/// A failed file operation, naming the file relative to the data directory
+/// (`robots/<file>`) so that no host path reaches a response.
 fn storage(what: &str, path: &Path, e: std::io::Error) -> Error {
     Error::Storage {
-        detail: format!("{what} {}: {e}", path.display()),
+        detail: format!("{what} {}: {e}", shown(path)),
     }
 }
 
+/// `robots/<file name>` (or `robots/` for the directory itself).
+fn shown(path: &Path) -> String {
+    match path.file_name() {
+        Some(n) if n != "robots" => format!("robots/{}", n.to_string_lossy()),
+        _ => "robots/".to_string(),
+    }
+}
+
+/// Whether `file` is a temporary file this server writes
+/// (`.<robot name>.json.tmp-<32 hex digits>`); nothing else is ever removed.
+fn is_own_temp_file(file: &str) -> bool {
+    let Some(rest) = file.strip_prefix('.') else {
+        return false;
+    };
+    let Some((name, suffix)) = rest.split_once(".json.tmp-") else {
+        return false;
+    };
+    crate::model::validate_name(name).is_ok()
+        && suffix.len() == 32
+        && suffix
+            .bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
 impl FileStore {
-    /// Opens (creating if needed) the store under `data_dir`, removing temporary
-    /// files a crash may have left.
+    /// Opens (creating if needed) the store under `data_dir`, removing the
+    /// temporary files of this server that a crash may have left. Fails, naming
+    /// the directory and the reason, when `robots` is not a directory (a plain
+    /// file, a dangling link) or cannot be listed.
     pub fn open(data_dir: &Path) -> Result<FileStore> {
         let dir = data_dir.join("robots");
-        fs::create_dir_all(&dir).map_err(|e| storage("cannot create", &dir, e))?;
-        if let Ok(entries) = fs::read_dir(&dir) {
-            for entry in entries.flatten() {
-                let name = entry.file_name();
-                let name = name.to_string_lossy();
-                if name.starts_with('.') && name.contains(".tmp") {
-                    tracing::info!(file = %entry.path().display(), "removing temporary file left by an interrupted write");
-                    let _ = fs::remove_file(entry.path());
-                }
+        let refuse = |why: String| Error::Storage {
+            detail: format!("data directory {}: {why}", dir.display()),
+        };
+        match fs::symlink_metadata(&dir) {
+            Ok(m) if m.file_type().is_symlink() && !dir.exists() => {
+                return Err(refuse("is a dangling symbolic link".into()));
+            }
+            Ok(_) if dir.exists() && !dir.is_dir() => {
+                return Err(refuse("exists but is not a directory".into()));
+            }
+            _ => {}
+        }
+        fs::create_dir_all(&dir).map_err(|e| refuse(format!("cannot create it: {e}")))?;
+        let entries = fs::read_dir(&dir).map_err(|e| refuse(format!("cannot list it: {e}")))?;
+        for entry in entries.flatten() {
+            let name = entry.file_name();
+            if is_own_temp_file(&name.to_string_lossy()) {
+                tracing::info!(file = %entry.path().display(), "removing temporary file left by an interrupted write");
+                let _ = fs::remove_file(entry.path());
             }
         }
         Ok(FileStore { dir })
@@ -181,8 +219,12 @@ impl FileStore {
 
 impl Store for FileStore {
     fn load_all(&self) -> Vec<(String, Result<Record>)> {
-        let Ok(entries) = fs::read_dir(&self.dir) else {
-            return Vec::new();
+        let entries = match fs::read_dir(&self.dir) {
+            Ok(entries) => entries,
+            Err(e) => {
+                let listing = storage("cannot list", &self.dir, e);
+                return vec![(self.dir.display().to_string(), Err(listing))];
+            }
         };
         let mut paths: Vec<PathBuf> = entries
             .flatten()
@@ -266,7 +308,7 @@ impl FileStore {
 /// A robot file and its version (from its modification time). The model's
 /// name must match the file name.
 fn read_record(p: &Path) -> Result<Record> {
-    let bytes = fs::read(p).map_err(|e| storage("cannot read", p, e))?;
+    let bytes = crate::model::read_robot_file(p).map_err(|e| storage("cannot read", p, e))?;
     let spec: RobotSpec = parse_json(&bytes)?;
     let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned());
     if stem.as_deref() != Some(spec.name.as_str()) {

@@ -315,7 +315,15 @@ async fn a_full_disk_is_507_and_unavailable_and_changes_nothing() {
         .unwrap();
     let p = problem(r, 507).await;
     assert_eq!(p["type"], "urn:kinserve:problem:storage");
-    assert!(p["detail"].as_str().unwrap().contains("write"), "{p}");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("write") && detail.contains("robots/.big.json.tmp-"),
+        "{p}"
+    );
+    assert!(
+        !detail.contains(&data.display().to_string()),
+        "no host path: {p}"
+    );
     problem(client.get(url("/v1/robots/big")).send().await.unwrap(), 404).await;
     // Replacing an existing robot by a big version fails the same way; the old one stays.
     let r = client
@@ -440,7 +448,12 @@ async fn an_unwritable_data_directory_is_507_and_unavailable_and_reads_go_on() {
     ] {
         let p = problem(r, 507).await;
         assert_eq!(p["type"], "urn:kinserve:problem:storage");
-        assert!(!p["detail"].as_str().unwrap().is_empty());
+        let detail = p["detail"].as_str().unwrap();
+        assert!(detail.contains("robots/"), "names the file: {p}");
+        assert!(
+            !detail.contains(&tmp.path().display().to_string()),
+            "no host path: {p}"
+        );
     }
     let mut g = app.grpc_client().await;
     let mut req = tonic::Request::new(pb::DeleteRobotRequest {

@@ -290,6 +290,44 @@ async fn of_writers_racing_with_the_same_if_match_exactly_one_wins() {
     assert_eq!(got["links"][1]["a"], 0.1 + f64::from(*i) / 100.0);
 }
 
+/// Issue 13 item 8: racing unconditional PUTs and DELETEs on one name; every
+/// PUT answer is the body that client wrote (never 404, never another
+/// client's body), with distinct ETags.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn racing_writes_each_answer_what_they_wrote() {
+    let app = spawn_app().await;
+    let writers = (0..8u32).map(|w| {
+        let (c, base) = (app.client.clone(), app.http.clone());
+        tokio::spawn(async move {
+            let mut answers = Vec::new();
+            for k in 0..40u32 {
+                if w == 0 && k % 2 == 1 {
+                    let _ = delete_with(&c, &base, "raced", &[]).await;
+                    continue;
+                }
+                let a = 0.1 + f64::from(w * 100 + k) / 10_000.0;
+                let r = put_with(&c, &base, "raced", &planar_version("raced", a), &[]).await;
+                let status = r.status().as_u16();
+                let etag = r
+                    .headers()
+                    .get(ETAG)
+                    .map(|v| v.to_str().unwrap().to_string());
+                let got: Value = r.json().await.unwrap();
+                answers.push((a, status, etag, got));
+            }
+            answers
+        })
+    });
+    let mut etags = std::collections::HashSet::new();
+    for answers in futures_util::future::join_all(writers).await {
+        for (a, status, etag, got) in answers.unwrap() {
+            assert!(status == 200 || status == 201, "{status}: {got}");
+            assert_eq!(got["links"][1]["a"], a, "the answer is what was written");
+            assert!(etags.insert(etag.expect("an ETag")), "ETags are distinct");
+        }
+    }
+}
+
 #[tokio::test]
 async fn etags_survive_a_restart_of_the_file_store() {
     let tmp = tempfile::tempdir().unwrap();

@@ -95,8 +95,80 @@ pub fn load_robot_file(path: &Path) -> Result<Robot> {
 /// Reads and validates a robot file with the given limits: the one loader of
 /// robot files (the CLI, the registry's built-ins and the tests all use it).
 pub fn load_robot_file_with(path: &Path, limits: &ModelLimits) -> Result<Robot> {
-    let bytes = std::fs::read(path)
+    let bytes = read_robot_file(path)
         .map_err(|e| ModelError::malformed(format!("cannot read {}: {e}", path.display())))?;
     let spec: RobotSpec = parse_json(&bytes)?;
     Robot::from_spec(spec, limits)
+}
+
+/// Largest robot file read, in bytes (16 MiB; the largest valid model is far
+/// smaller). A bigger file is refused without being read.
+pub const MAX_ROBOT_FILE_BYTES: u64 = 16 << 20;
+
+/// The bytes of the robot file at `path`, which must be a regular file (a
+/// symbolic link to one is fine) of at most [`MAX_ROBOT_FILE_BYTES`]: a FIFO,
+/// a device, a socket or a directory is refused without being opened (it
+/// could block or never end), and an oversized file without being read. The
+/// error says which rule the file broke.
+pub fn read_robot_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    check_regular(&std::fs::metadata(path)?)?;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    check_regular(&meta)?;
+    let mut bytes = Vec::with_capacity(usize::try_from(meta.len()).unwrap_or(0));
+    file.take(MAX_ROBOT_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_ROBOT_FILE_BYTES {
+        return Err(too_big(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+fn check_regular(meta: &std::fs::Metadata) -> std::io::Result<()> {
+    let kind = meta.file_type();
+    if !kind.is_file() {
+        let what = if kind.is_dir() {
+            "a directory"
+        } else {
+            special_kind(&kind)
+        };
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("not a regular file ({what}); robot files must be regular files"),
+        ));
+    }
+    if meta.len() > MAX_ROBOT_FILE_BYTES {
+        return Err(too_big(meta.len()));
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn special_kind(kind: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_fifo() {
+        "a FIFO"
+    } else if kind.is_socket() {
+        "a socket"
+    } else if kind.is_block_device() || kind.is_char_device() {
+        "a device"
+    } else {
+        "a special file"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::FileType) -> &'static str {
+    "a special file"
+}
+
+fn too_big(len: u64) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!(
+            "{len} bytes, more than the {} MiB a robot file may have",
+            MAX_ROBOT_FILE_BYTES >> 20
+        ),
+    )
 }

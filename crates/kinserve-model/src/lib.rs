@@ -35,7 +35,9 @@ pub use ik::{
     IkRequest, IkSpec, IkTarget, IkTargetSpec,
 };
 pub use joints::{JointBatch, JointVector};
-pub use json::{load_robot_file, load_robot_file_with, parse_json};
+pub use json::{
+    MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
+};
 pub use robot::{FkOptions, Joint, ModelLimits, Robot};
 pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,

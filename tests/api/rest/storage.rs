@@ -192,3 +192,96 @@ async fn a_failed_write_is_507_and_changes_nothing() {
     let got: Value = app.get("/v1/robots/before").await.json().await.unwrap();
     assert!(json_eq(&got, &planar_model("before")), "unchanged: {got}");
 }
+
+// ---------------------------------------------------------------- the data directory
+
+/// Only regular files of bounded size are read at start-up: a FIFO (which
+/// would block the read forever), a 3 GB sparse file (which would be read
+/// whole) and a directory are skipped and left in place; only the server's
+/// own temporary files are cleaned, nothing else that looks like one.
+#[tokio::test]
+async fn special_oversized_and_foreign_files_in_the_data_dir_are_left_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("robots");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("good.json"),
+        serde_json::to_vec(&planar_model("good")).unwrap(),
+    )
+    .unwrap();
+    let fifo = dir.join("fifo.json");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let huge = dir.join("huge.json");
+    std::fs::File::create(&huge)
+        .unwrap()
+        .set_len(3 << 30)
+        .unwrap();
+    let own_tmp = dir.join(".good.json.tmp-0123456789abcdef0123456789abcdef");
+    std::fs::write(&own_tmp, b"{").unwrap();
+    let foreign = [
+        ".my.tmp.notes",
+        ".good.json.tmp-mine",
+        ".Bad.json.tmp-0123456789abcdef0123456789abcdef",
+    ];
+    for f in foreign {
+        std::fs::write(dir.join(f), b"keep me").unwrap();
+    }
+
+    let app = tokio::time::timeout(
+        std::time::Duration::from_secs(60),
+        spawn_in(tmp.path(), |_| {}),
+    )
+    .await
+    .expect("start-up does not hang on a FIFO");
+    assert_eq!(app.get("/v1/robots/good").await.status(), 200);
+    for name in ["fifo", "huge"] {
+        problem(app.get(&format!("/v1/robots/{name}")).await, 404).await;
+    }
+    app.stop().await.unwrap();
+    assert!(fifo.exists() && huge.exists(), "skipped files stay");
+    assert!(
+        !own_tmp.exists(),
+        "the server's own temporary file is cleaned"
+    );
+    for f in foreign {
+        assert_eq!(std::fs::read(dir.join(f)).unwrap(), b"keep me", "{f}");
+    }
+
+    // The reasons, as the start-up log gives them.
+    let err = kinserve::model::read_robot_file(&fifo).unwrap_err();
+    assert!(err.to_string().contains("FIFO"), "{err}");
+    let err = kinserve::model::read_robot_file(&huge).unwrap_err();
+    assert!(err.to_string().contains("16 MiB"), "{err}");
+    let err = kinserve::model::read_robot_file(&dir).unwrap_err();
+    assert!(err.to_string().contains("directory"), "{err}");
+}
+
+/// `robots` in the data directory that is a plain file or a dangling link
+/// stops start-up with an error naming it and saying what is wrong.
+#[tokio::test]
+async fn a_robots_path_that_is_not_a_directory_stops_start_up_naming_it() {
+    for (kind, make) in [
+        (
+            "not a directory",
+            &(|p: &std::path::Path| std::fs::write(p, b"x").unwrap()) as &dyn Fn(&std::path::Path),
+        ),
+        ("dangling symbolic link", &|p: &std::path::Path| {
+            std::os::unix::fs::symlink(p.with_file_name("nowhere"), p).unwrap()
+        }),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let robots = tmp.path().join("robots");
+        make(&robots);
+        let config = kinserve::config::ServeConfig::for_tests(tmp.path().to_path_buf());
+        let Err(err) = kinserve::App::build(config).await else {
+            panic!("start-up must fail when robots/ is a {kind}");
+        };
+        let msg = err.to_string();
+        assert!(msg.contains(kind), "{msg}");
+        assert!(msg.contains(&robots.display().to_string()), "{msg}");
+    }
+}
