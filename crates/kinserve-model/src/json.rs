@@ -14,7 +14,20 @@ use crate::spec::RobotSpec;
 /// (with line and column), wrong types, unknown or missing fields and unknown
 /// enum values alike. Rules broken by a body that parses are
 /// [`ModelError::Invalid`] (HTTP 422), from validation.
+///
+/// The happy path parses with plain serde_json; only a body that fails is
+/// parsed again with field-path tracking (which allocates a string per
+/// object key visited) to say where the problem is. Both parses read the
+/// same bytes with the same rules, so they accept exactly the same bodies.
 pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
+    match serde_json::from_slice(bytes) {
+        Ok(value) => Ok(value),
+        Err(_) => parse_json_with_path(bytes),
+    }
+}
+
+/// [`parse_json`]'s error path: the same parse, tracking the field path.
+fn parse_json_with_path<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
     let de = &mut serde_json::Deserializer::from_slice(bytes);
     let value: T = serde_path_to_error::deserialize(&mut *de).map_err(json_error)?;
     de.end()

@@ -39,15 +39,7 @@ impl<T: DeserializeOwned> JsonBody<T> {
             .get(header::CONTENT_TYPE)
             .and_then(|v| v.to_str().ok())
             .unwrap_or("");
-        let mime = content_type
-            .split(';')
-            .next()
-            .unwrap_or("")
-            .trim()
-            .to_ascii_lowercase();
-        if mime != "application/json"
-            && !(mime.starts_with("application/") && mime.ends_with("+json"))
-        {
+        if !is_json(content_type) {
             return Err(Error::UnsupportedMediaType {
                 detail: format!(
                     "expected Content-Type application/json, got '{}'",
@@ -93,6 +85,22 @@ impl<T: DeserializeOwned> JsonBody<T> {
             })?;
         Ok(JsonBody(parse_object(&bytes)?))
     }
+}
+
+/// Whether a `Content-Type` value is JSON: `application/json` or
+/// `application/<anything>+json`, any case, parameters ignored.
+fn is_json(content_type: &str) -> bool {
+    let mime = content_type.split(';').next().unwrap_or("").trim();
+    let Some((kind, sub)) = mime.split_once('/') else {
+        return false;
+    };
+    kind.eq_ignore_ascii_case("application")
+        && (sub.eq_ignore_ascii_case("json")
+            || sub
+                .len()
+                .checked_sub(5)
+                .and_then(|i| sub.get(i..))
+                .is_some_and(|tail| tail.eq_ignore_ascii_case("+json")))
 }
 
 /// Parses a JSON object into `T` (see [`parse_json`]). A top-level array is
