@@ -486,7 +486,7 @@ async fn stream_worker(
                         id,
                         robot: robot.clone(),
                         joints,
-                        options: options.clone(),
+                        options,
                         ..Default::default()
                     };
                     if req_tx.send(req).await.is_err() {

@@ -158,7 +158,7 @@ async fn an_unknown_pose_format_is_a_parse_error_naming_the_field_on_every_door(
         ..Default::default()
     });
     let mut c = app.grpc_client().await;
-    let e = fk(&mut c, fk_request("planar_2dof", &[0.0, 0.0], bad.clone()))
+    let e = fk(&mut c, fk_request("planar_2dof", &[0.0, 0.0], bad))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
@@ -169,7 +169,7 @@ async fn an_unknown_pose_format_is_a_parse_error_naming_the_field_on_every_door(
             configurations: vec![pb::JointConfiguration {
                 joints: vec![0.0, 0.0],
             }],
-            options: bad.clone(),
+            options: bad,
         })
         .await
         .unwrap_err();
