@@ -64,11 +64,11 @@ pub struct FkOutput {
     pub length_unit: LengthUnit,
     /// Tool pose `^world T_tool`, in the request's `pose_format` (over REST;
     /// the CLI always gives the full object).
-    #[schema(value_type = crate::api::pose_format::FormattedPoseSchema)]
+    #[schema(value_type = crate::api::pose_format::PoseValue)]
     pub pose: Pose,
     /// Only when asked for: `^world T_i` for `i = 0..=rows` (0 = base frame,
     /// last = flange), in the same format as `pose`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<crate::api::pose_format::FormattedPoseSchema>>)]
+    #[schema(value_type = Option<Vec<crate::api::pose_format::PoseValue>>)]
     pub frames: Option<Vec<Pose>>,
 }

@@ -145,7 +145,7 @@ pub struct PosePosition(pub Vec<f64>);
 /// Documentation only.
 #[derive(Serialize, ToSchema)]
 #[serde(untagged)]
-pub enum FormattedPoseSchema {
+pub enum PoseValue {
     /// `full`.
     Full(Pose),
     /// `matrix`.

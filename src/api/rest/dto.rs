@@ -6,7 +6,7 @@ use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::pose_format::{FormattedPose, FormattedPoseSchema, FormattedPoses, PoseFormat};
+use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat, PoseValue};
 use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
 use crate::service::Configurations;
 
@@ -209,7 +209,7 @@ pub struct FkBatchResponse<'a> {
     /// One pose per configuration, in request order, in the request's
     /// `pose_format`: [`Pose`](crate::api::pose::Pose) objects (`full`), arrays of 12 numbers
     /// (`matrix`) or of 3 (`position`).
-    #[schema(value_type = Vec<FormattedPoseSchema>)]
+    #[schema(value_type = Vec<PoseValue>)]
     pub poses: FormattedPoses<'a>,
 }
 
@@ -324,11 +324,11 @@ pub struct WsReply<'a> {
     /// The tool pose, on success (for IK: the pose at the joints found,
     /// always `full`), in the message's `pose_format`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<FormattedPoseSchema>)]
+    #[schema(value_type = Option<PoseValue>)]
     pub pose: Option<FormattedPose>,
     /// Every frame, when asked for, in the message's `pose_format`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<FormattedPoseSchema>>)]
+    #[schema(value_type = Option<Vec<PoseValue>>)]
     pub frames: Option<FormattedPoses<'a>>,
     /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
     #[serde(flatten)]

@@ -280,7 +280,7 @@ async fn the_openapi_document_describes_the_formats() {
         let p = &schemas[request]["properties"]["pose_format"];
         assert!(!p.is_null(), "{request}: pose_format documented");
     }
-    let union = &schemas["FormattedPoseSchema"]["oneOf"];
+    let union = &schemas["PoseValue"]["oneOf"];
     assert_eq!(union.as_array().map(Vec::len), Some(3), "{union}");
     assert_eq!(schemas["PoseMatrix"]["minItems"], 12);
     assert_eq!(schemas["PosePosition"]["maxItems"], 3);
