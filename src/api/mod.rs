@@ -21,6 +21,7 @@ use crate::error::Error;
 
 pub mod grpc;
 pub mod pose;
+pub mod pose_format;
 pub mod rest;
 pub mod velocity;
 

@@ -62,9 +62,13 @@ pub struct FkOutput {
     pub robot: String,
     /// Length unit of every position in this result.
     pub length_unit: LengthUnit,
-    /// Tool pose `^world T_tool`.
+    /// Tool pose `^world T_tool`, in the request's `pose_format` (over REST;
+    /// the CLI always gives the full object).
+    #[schema(value_type = crate::api::pose_format::PoseValue)]
     pub pose: Pose,
-    /// Only when asked for: `^world T_i` for `i = 0..=rows` (0 = base frame, last = flange).
+    /// Only when asked for: `^world T_i` for `i = 0..=rows` (0 = base frame,
+    /// last = flange), in the same format as `pose`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<crate::api::pose_format::PoseValue>>)]
     pub frames: Option<Vec<Pose>>,
 }

@@ -70,6 +70,54 @@ impl Target {
     }
 }
 
+/// How the server is asked to write poses (`pose_format` over REST and the
+/// WebSocket, `FkOptions.pose_format` over gRPC).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PoseFormat {
+    /// The full pose object (the option is not sent: the server's default).
+    #[default]
+    Full,
+    /// 12 numbers per pose: the top three rows of the matrix, row-major.
+    Matrix,
+    /// 3 numbers per pose: the position.
+    Position,
+}
+
+impl PoseFormat {
+    /// The REST / WebSocket value; `None` for `full` (left out of requests).
+    pub fn json_name(self) -> Option<&'static str> {
+        match self {
+            PoseFormat::Full => None,
+            PoseFormat::Matrix => Some("matrix"),
+            PoseFormat::Position => Some("position"),
+        }
+    }
+
+    /// gRPC `FkOptions` asking for this format (`None` for `full`).
+    fn pb_options(self) -> Option<kinserve::api::grpc::pb::FkOptions> {
+        use kinserve::api::grpc::pb::PoseFormat as Pb;
+        let format = match self {
+            PoseFormat::Full => return None,
+            PoseFormat::Matrix => Pb::Matrix,
+            PoseFormat::Position => Pb::Position,
+        };
+        Some(kinserve::api::grpc::pb::FkOptions {
+            pose_format: format as i32,
+            ..Default::default()
+        })
+    }
+
+    /// Numbers per pose as received: the 16 of the full matrix, 12 or 3.
+    fn stride(self) -> usize {
+        match self {
+            PoseFormat::Full => 16,
+            PoseFormat::Matrix => 12,
+            PoseFormat::Position => 3,
+        }
+    }
+}
+
 /// Command line of `kinserve-load`.
 #[derive(Clone, Debug, Parser)]
 #[command(
@@ -109,6 +157,10 @@ pub struct LoadArgs {
     /// Check every returned pose against the core library (a wrong pose counts as an error).
     #[arg(long)]
     pub verify: bool,
+    /// Pose format asked of the server on every FK target (`full` is the
+    /// server's default and is not sent); `--verify` checks the numbers received.
+    #[arg(long, value_enum, default_value_t = PoseFormat::Full)]
+    pub pose_format: PoseFormat,
     /// Print the result as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -167,6 +219,8 @@ pub struct Report {
     pub errors: BTreeMap<String, u64>,
     /// Whether poses were verified.
     pub verified: bool,
+    /// Pose format asked for.
+    pub pose_format: PoseFormat,
 }
 
 impl Report {
@@ -308,9 +362,10 @@ impl ConfigSource {
     }
 }
 
-/// Checks a returned pose (row-major 16 values) against the library's FK.
-fn verify_pose(robot: &Robot, q: &[f64], matrix16: &[f64]) -> bool {
-    if matrix16.len() != 16 {
+/// Checks a returned pose against the library's FK: the 16 values of the
+/// row-major matrix (`full`), its top 12 (`matrix`) or the position (`position`).
+fn verify_pose(robot: &Robot, q: &[f64], values: &[f64], format: PoseFormat) -> bool {
+    if values.len() != format.stride() {
         return false;
     }
     let expect: Transform = robot.chain().forward(q, 1.0);
@@ -320,10 +375,11 @@ fn verify_pose(robot: &Robot, q: &[f64], matrix16: &[f64]) -> bool {
             .translation
             .iter()
             .fold(0.0f64, |a, x| a.max(x.abs()));
-    m.iter()
-        .flatten()
-        .zip(matrix16)
-        .all(|(a, b)| (a - b).abs() <= 1e-9 * scale)
+    let close = |(a, b): (&f64, &f64)| (a - b).abs() <= 1e-9 * scale;
+    match format {
+        PoseFormat::Position => expect.translation.iter().zip(values).all(close),
+        _ => m.iter().flatten().zip(values).all(close),
+    }
 }
 
 /// Fetches the robot model over REST (for configurations and verification).
@@ -414,5 +470,6 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
         latency_us: latency,
         errors: total.errors,
         verified: args.verify,
+        pose_format: args.pose_format,
     })
 }

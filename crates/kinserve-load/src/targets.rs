@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use futures_util::{SinkExt, StreamExt};
 use tokio_tungstenite::tungstenite::Message;
 
-use super::{ConfigSource, Plan, Tally, Target, verify_pose};
+use super::{ConfigSource, Plan, PoseFormat, Tally, Target, verify_pose};
 use kinserve::api::grpc::pb;
 use kinserve::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
 
@@ -85,11 +85,66 @@ async fn grpc_client(
 #[derive(serde::Serialize)]
 struct SingleBody<'a> {
     joints: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose_format: Option<&'static str>,
 }
 
 #[derive(serde::Serialize)]
 struct BatchBody<'a> {
     configurations: Vec<&'a [f64]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose_format: Option<&'static str>,
+}
+
+/// A compact single reply: the pose is an array of numbers.
+#[derive(serde::Deserialize)]
+struct CompactSingleReply {
+    pose: Vec<f64>,
+}
+
+/// A compact batch reply: each pose is an array of numbers.
+#[derive(serde::Deserialize)]
+struct CompactBatchReply {
+    poses: Vec<Vec<f64>>,
+}
+
+/// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
+fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<f64>>, String> {
+    let decoded = match (format, batch) {
+        (PoseFormat::Full, false) => {
+            serde_json::from_slice::<SingleReply>(bytes).map(|v| vec![flat(&v.pose.matrix)])
+        }
+        (PoseFormat::Full, true) => serde_json::from_slice::<BatchReply>(bytes)
+            .map(|v| v.poses.iter().map(|p| flat(&p.matrix)).collect()),
+        (_, false) => serde_json::from_slice::<CompactSingleReply>(bytes).map(|v| vec![v.pose]),
+        (_, true) => serde_json::from_slice::<CompactBatchReply>(bytes).map(|v| v.poses),
+    };
+    decoded.map_err(|_| "decode".to_string())
+}
+
+/// The numbers of each pose of a gRPC answer: the Pose messages' matrices
+/// (`full`) or the packed values cut into poses.
+fn grpc_poses(
+    poses: Vec<pb::Pose>,
+    packed: Option<pb::PackedPoses>,
+    format: PoseFormat,
+) -> Vec<Vec<f64>> {
+    match packed {
+        Some(p) => p
+            .values
+            .chunks(format.stride())
+            .map(<[f64]>::to_vec)
+            .collect(),
+        None => poses.into_iter().map(|p| p.matrix).collect(),
+    }
+}
+
+/// The numbers of a WebSocket reply's pose: an array (compact) or the matrix of an object.
+fn json_pose(pose: &serde_json::Value) -> Vec<f64> {
+    match pose.as_array() {
+        Some(a) => a.iter().filter_map(|x| x.as_f64()).collect(),
+        None => json_matrix16(pose),
+    }
 }
 
 /// Just the matrix of a pose.
@@ -205,10 +260,14 @@ async fn unary_worker(
                 Err(_) => Err("transport".into()),
             },
             Target::Rest | Target::RestBatch => {
+                let pose_format = args.pose_format.json_name();
                 let (url, body) = if args.target == Target::Rest {
                     (
                         format!("http://{}/v1/robots/{}/fk", args.http_addr, args.robot),
-                        serde_json::to_vec(&SingleBody { joints: &q }),
+                        serde_json::to_vec(&SingleBody {
+                            joints: &q,
+                            pose_format,
+                        }),
                     )
                 } else {
                     let configurations: Vec<&[f64]> = q.chunks(dof.max(1)).collect();
@@ -217,7 +276,10 @@ async fn unary_worker(
                             "http://{}/v1/robots/{}/fk/batch",
                             args.http_addr, args.robot
                         ),
-                        serde_json::to_vec(&BatchBody { configurations }),
+                        serde_json::to_vec(&BatchBody {
+                            configurations,
+                            pose_format,
+                        }),
                     )
                 };
                 let body = body.map_err(|e| e.to_string())?;
@@ -230,15 +292,7 @@ async fn unary_worker(
                         // Typed decoding: only the matrices are kept (cheap on the client,
                         // which shares the machine with the server).
                         let bytes = r.bytes().await.unwrap_or_default();
-                        if args.target == Target::Rest {
-                            serde_json::from_slice::<SingleReply>(&bytes)
-                                .map(|v| vec![flat(&v.pose.matrix)])
-                                .map_err(|_| "decode".to_string())
-                        } else {
-                            serde_json::from_slice::<BatchReply>(&bytes)
-                                .map(|v| v.poses.iter().map(|p| flat(&p.matrix)).collect())
-                                .map_err(|_| "decode".to_string())
-                        }
+                        decode_rest(&bytes, args.target == Target::RestBatch, args.pose_format)
                     }
                     Ok(r) => Err(format!("http_{}", r.status().as_u16())),
                     Err(_) => Err("transport".into()),
@@ -272,12 +326,14 @@ async fn unary_worker(
                 let req = pb::ForwardKinematicsRequest {
                     robot: args.robot.clone(),
                     joints: q.clone(),
-                    options: None,
+                    options: args.pose_format.pb_options(),
                 };
                 match c.forward_kinematics(req).await {
-                    Ok(r) => Ok(vec![
-                        r.into_inner().pose.map(|p| p.matrix).unwrap_or_default(),
-                    ]),
+                    Ok(r) => {
+                        let r = r.into_inner();
+                        let pose = r.pose.into_iter().collect();
+                        Ok(grpc_poses(pose, r.packed_pose, args.pose_format))
+                    }
                     Err(s) => Err(format!("grpc_{:?}", s.code())),
                 }
             }
@@ -291,10 +347,13 @@ async fn unary_worker(
                         .chunks(dof.max(1))
                         .map(|c| pb::JointConfiguration { joints: c.to_vec() })
                         .collect(),
-                    options: None,
+                    options: args.pose_format.pb_options(),
                 };
                 match c.forward_kinematics_batch(req).await {
-                    Ok(r) => Ok(r.into_inner().poses.into_iter().map(|p| p.matrix).collect()),
+                    Ok(r) => {
+                        let r = r.into_inner();
+                        Ok(grpc_poses(r.poses, r.packed_poses, args.pose_format))
+                    }
                     Err(s) => Err(format!("grpc_{:?}", s.code())),
                 }
             }
@@ -323,7 +382,7 @@ async fn unary_worker(
                     && let Some(robot) = plan.robot.as_ref()
                 {
                     for (k, m) in matrices.iter().enumerate() {
-                        if !verify_pose(robot, &q[k * dof..(k + 1) * dof], m) {
+                        if !verify_pose(robot, &q[k * dof..(k + 1) * dof], m, args.pose_format) {
                             tally.error("verify");
                         }
                     }
@@ -373,9 +432,14 @@ async fn stream_worker(
             let (mut sink, mut stream) = ws.split();
             let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
             let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+            let pose_format = args.pose_format.json_name();
             tokio::spawn(async move {
                 while let Some((id, q)) = rx.recv().await {
-                    let msg = serde_json::json!({ "id": id, "joints": q }).to_string();
+                    let mut msg = serde_json::json!({ "id": id, "joints": q });
+                    if let Some(f) = pose_format {
+                        msg["pose_format"] = f.into();
+                    }
+                    let msg = msg.to_string();
                     if sink.send(Message::Text(msg.into())).await.is_err() {
                         return;
                     }
@@ -390,7 +454,7 @@ async fn stream_worker(
                             Ok(v) => {
                                 let id = v["id"].as_u64().unwrap_or(u64::MAX);
                                 if v.get("pose").is_some() {
-                                    Reply::Pose(id, json_matrix16(&v["pose"]))
+                                    Reply::Pose(id, json_pose(&v["pose"]))
                                 } else {
                                     Reply::Error(id, format!("ws_error_{}", v["error"]["status"]))
                                 }
@@ -413,6 +477,7 @@ async fn stream_worker(
             let mut client = grpc_client(&args.grpc_addr).await?;
             let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
             let robot = args.robot.clone();
+            let options = args.pose_format.pb_options();
             let (req_tx, req_rx) =
                 tokio::sync::mpsc::channel::<pb::StreamForwardKinematicsRequest>(args.pipeline);
             tokio::spawn(async move {
@@ -421,7 +486,7 @@ async fn stream_worker(
                         id,
                         robot: robot.clone(),
                         joints,
-                        options: None,
+                        options,
                         ..Default::default()
                     };
                     if req_tx.send(req).await.is_err() {
@@ -441,6 +506,9 @@ async fn stream_worker(
                         Ok(Some(m)) => match m.result {
                             Some(pb::stream_forward_kinematics_response::Result::Pose(p)) => {
                                 Reply::Pose(m.id, p.matrix)
+                            }
+                            Some(pb::stream_forward_kinematics_response::Result::PackedPose(p)) => {
+                                Reply::Pose(m.id, p.values)
                             }
                             Some(pb::stream_forward_kinematics_response::Result::Error(s)) => {
                                 Reply::Error(m.id, format!("stream_error_{}", s.code))
@@ -539,7 +607,7 @@ async fn stream_worker(
                     tally.poses += 1;
                     if plan.args.verify
                         && let Some(robot) = plan.robot.as_ref()
-                        && !verify_pose(robot, &head.q, &m)
+                        && !verify_pose(robot, &head.q, &m, plan.args.pose_format)
                     {
                         tally.error("verify");
                     }

@@ -46,11 +46,59 @@ async fn spawn_app() -> TestApp {
     panic!("server not ready at {http}");
 }
 
+/// Runs `kinserve-load --verify` on one target and asserts a clean report:
+/// everything answered, no error, the expected number of poses.
+async fn run_clean(app: &TestApp, target: &str, robot: &str, pose_format: &str) {
+    let http = app.http.trim_start_matches("http://");
+    let grpc = app.grpc.trim_start_matches("http://");
+    let what = format!("{target}/{robot}/{pose_format}");
+    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
+        .args(["--target", target, "--robot", robot, "--concurrency", "2"])
+        .args([
+            "--duration",
+            "400ms",
+            "--warmup",
+            "0s",
+            "--batch-size",
+            "50",
+        ])
+        .args(["--pipeline", "8", "--max-requests", "200"])
+        .args(["--pose-format", pose_format, "--verify", "--json"])
+        .args(["--http-addr", http, "--grpc-addr", grpc])
+        .output()
+        .await
+        .expect("kinserve-load runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{what}: exit {:?}\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_str(&stdout).expect("JSON report");
+    let sent = report["sent"].as_u64().unwrap();
+    assert!(sent > 0, "{what}: nothing sent");
+    assert_eq!(
+        report["answered"].as_u64().unwrap(),
+        sent,
+        "{what}: unanswered requests"
+    );
+    assert_eq!(report["errors"], serde_json::json!({}), "{what}: errors");
+    assert_eq!(report["verified"], true);
+    assert_eq!(report["pose_format"], pose_format);
+    let poses = report["poses"].as_u64().unwrap();
+    match target {
+        "rest-health" | "grpc-health" => assert_eq!(poses, 0),
+        "rest-batch" | "grpc-batch" => {
+            assert_eq!(poses, sent * 50, "{what}: poses per batch")
+        }
+        _ => assert_eq!(poses, sent, "{what}: one pose per request"),
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_load_target_runs_clean_with_verification() {
     let app = spawn_app().await;
-    let http = app.http.trim_start_matches("http://").to_string();
-    let grpc = app.grpc.trim_start_matches("http://").to_string();
     let targets = [
         "rest-health",
         "rest",
@@ -63,64 +111,29 @@ async fn every_load_target_runs_clean_with_verification() {
     ];
     for target in targets {
         for robot in ["puma560", "stanford"] {
-            let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
-                .args([
-                    "--target",
-                    target,
-                    "--robot",
-                    robot,
-                    "--concurrency",
-                    "2",
-                    "--duration",
-                    "400ms",
-                ])
-                .args([
-                    "--warmup",
-                    "0s",
-                    "--batch-size",
-                    "50",
-                    "--pipeline",
-                    "8",
-                    "--max-requests",
-                    "200",
-                ])
-                .args([
-                    "--verify",
-                    "--json",
-                    "--http-addr",
-                    &http,
-                    "--grpc-addr",
-                    &grpc,
-                ])
-                .output()
-                .await
-                .expect("kinserve-load runs");
-            let stdout = String::from_utf8_lossy(&out.stdout);
-            assert!(
-                out.status.success(),
-                "{target}/{robot}: exit {:?}\n{stdout}\n{}",
-                out.status,
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let report: serde_json::Value = serde_json::from_str(&stdout).expect("JSON report");
-            let sent = report["sent"].as_u64().unwrap();
-            assert!(sent > 0, "{target}: nothing sent");
-            assert_eq!(
-                report["answered"].as_u64().unwrap(),
-                sent,
-                "{target}: unanswered requests"
-            );
-            assert_eq!(report["errors"], serde_json::json!({}), "{target}: errors");
-            assert_eq!(report["verified"], true);
-            let poses = report["poses"].as_u64().unwrap();
-            match target {
-                "rest-health" | "grpc-health" => assert_eq!(poses, 0),
-                "rest-batch" | "grpc-batch" => {
-                    assert_eq!(poses, sent * 50, "{target}: poses per batch")
-                }
-                _ => assert_eq!(poses, sent, "{target}: one pose per request"),
-            }
+            run_clean(&app, target, robot, "full").await;
         }
+    }
+}
+
+/// `--pose-format matrix` on every FK target (each protocol: REST single and
+/// batch, WebSocket, gRPC unary, batch and stream), `position` on the
+/// batches; `--verify` checks the compact numbers against the library.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compact_pose_formats_run_clean_with_verification_on_every_protocol() {
+    let app = spawn_app().await;
+    for target in [
+        "rest",
+        "rest-batch",
+        "ws",
+        "grpc",
+        "grpc-batch",
+        "grpc-stream",
+    ] {
+        run_clean(&app, target, "panda", "matrix").await;
+    }
+    for target in ["rest-batch", "grpc-batch", "ws"] {
+        run_clean(&app, target, "puma560", "position").await;
     }
 }
 

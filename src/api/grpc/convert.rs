@@ -1,6 +1,7 @@
 //! Conversions between protobuf messages and the model / service types.
 
 use super::pb;
+use crate::api::pose_format::PoseFormat;
 use crate::error::{Error, FieldViolation, Result};
 use crate::kinematics::Transform;
 use crate::model::{
@@ -284,6 +285,41 @@ fn twin(field: &str, old_name: &str, new: Option<bool>, old: bool, default: bool
         Some(v) => Ok(v),
         None => Ok(old),
     }
+}
+
+/// `options.pose_format` → pose format (absent options or unspecified: full).
+/// A value out of range is malformed, naming `options.pose_format` (like an
+/// unknown `angle_unit`).
+pub fn pose_format_from_pb(o: Option<&pb::FkOptions>) -> Result<PoseFormat> {
+    let Some(o) = o else {
+        return Ok(PoseFormat::Full);
+    };
+    match pb::PoseFormat::try_from(o.pose_format) {
+        Ok(pb::PoseFormat::Unspecified | pb::PoseFormat::Full) => Ok(PoseFormat::Full),
+        Ok(pb::PoseFormat::Matrix) => Ok(PoseFormat::Matrix),
+        Ok(pb::PoseFormat::Position) => Ok(PoseFormat::Position),
+        Err(_) => Err(Error::malformed_field(
+            "options.pose_format",
+            "unknown pose format: use POSE_FORMAT_FULL, POSE_FORMAT_MATRIX or POSE_FORMAT_POSITION",
+        )),
+    }
+}
+
+/// Poses in a compact format as one packed message (one pre-sized vector of
+/// numbers, nothing per pose); `None` for `full`, which answers with Pose messages.
+pub fn packed_to_pb<'a>(
+    format: PoseFormat,
+    poses: impl ExactSizeIterator<Item = &'a Transform>,
+) -> Option<pb::PackedPoses> {
+    let format_pb = match format {
+        PoseFormat::Full => return None,
+        PoseFormat::Matrix => pb::PoseFormat::Matrix,
+        PoseFormat::Position => pb::PoseFormat::Position,
+    };
+    Some(pb::PackedPoses {
+        format: format_pb as i32,
+        values: format.pack(poses),
+    })
 }
 
 /// Transform → proto pose.

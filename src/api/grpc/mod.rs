@@ -107,17 +107,45 @@ impl GrpcService {
         robot: &str,
         joints: &[f64],
         options: Option<&pb::FkOptions>,
-    ) -> Result<(pb::Pose, Vec<pb::Pose>, pb::LengthUnit), Error> {
+    ) -> Result<FkAnswer, Error> {
         let entry = self.service.robot_at(robot, "robot")?;
         let (opts, frames) = convert::options_from_pb(options)?;
+        let format = convert::pose_format_from_pb(options)?;
         let unit = convert::length_unit_to_pb(entry.robot.length_unit());
         let (t, fr) = self
             .service
             .fk_with_frames(&entry.robot, joints, &opts, frames)?;
         entry.count_poses(Protocol::Grpc, 1);
-        let frames = fr.iter().flatten().map(convert::pose_to_pb).collect();
-        Ok((convert::pose_to_pb(&t), frames, unit))
+        let fr = fr.unwrap_or_default();
+        Ok(match convert::packed_to_pb(format, std::iter::once(&t)) {
+            None => FkAnswer {
+                pose: Some(convert::pose_to_pb(&t)),
+                frames: fr.iter().map(convert::pose_to_pb).collect(),
+                packed_pose: None,
+                packed_frames: None,
+                unit,
+            },
+            Some(packed) => FkAnswer {
+                pose: None,
+                frames: Vec::new(),
+                packed_pose: Some(packed),
+                packed_frames: frames
+                    .then(|| convert::packed_to_pb(format, fr.iter()))
+                    .flatten(),
+                unit,
+            },
+        })
     }
+}
+
+/// One FK answer as the gRPC messages carry it: Pose messages (`full`) or
+/// PackedPoses (a compact `pose_format`), and the robot's length unit.
+struct FkAnswer {
+    pose: Option<pb::Pose>,
+    frames: Vec<pb::Pose>,
+    packed_pose: Option<pb::PackedPoses>,
+    packed_frames: Option<pb::PackedPoses>,
+    unit: pb::LengthUnit,
 }
 
 impl GrpcService {
@@ -170,14 +198,19 @@ impl GrpcService {
         } else {
             None
         };
-        let (pose, frames, unit) = self.fk_one(robot, joints, options)?;
+        let a = self.fk_one(robot, joints, options)?;
+        use pb::stream_forward_kinematics_response::Result as Answer;
         Ok(pb::StreamForwardKinematicsResponse {
             id: 0,
-            result: Some(pb::stream_forward_kinematics_response::Result::Pose(pose)),
-            length_unit: unit as i32,
-            frames,
+            result: a
+                .pose
+                .map(Answer::Pose)
+                .or(a.packed_pose.map(Answer::PackedPose)),
+            length_unit: a.unit as i32,
+            frames: a.frames,
             jacobian,
             ik: None,
+            packed_frames: a.packed_frames,
         })
     }
 
@@ -212,6 +245,7 @@ impl GrpcService {
             frames: Vec::new(),
             jacobian: None,
             ik: Some(result),
+            packed_frames: None,
         })
     }
 }
@@ -320,12 +354,14 @@ impl KinematicsService for GrpcService {
     ) -> Result<Response<pb::ForwardKinematicsResponse>, Status> {
         let _permit = self.admit()?;
         let req = req.into_inner();
-        let (pose, frames, unit) = self.fk_one(&req.robot, &req.joints, req.options.as_ref())?;
+        let a = self.fk_one(&req.robot, &req.joints, req.options.as_ref())?;
         Ok(Response::new(pb::ForwardKinematicsResponse {
             robot: req.robot,
-            length_unit: unit as i32,
-            pose: Some(pose),
-            frames,
+            length_unit: a.unit as i32,
+            pose: a.pose,
+            frames: a.frames,
+            packed_pose: a.packed_pose,
+            packed_frames: a.packed_frames,
         }))
     }
 
@@ -338,6 +374,7 @@ impl KinematicsService for GrpcService {
         self.service.check_batch_size(req.configurations.len())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let (opts, frames) = convert::options_from_pb(req.options.as_ref())?;
+        let format = convert::pose_format_from_pb(req.options.as_ref())?;
         if frames {
             return Err(Error::malformed_field(
                 "options.frames",
@@ -354,10 +391,16 @@ impl KinematicsService for GrpcService {
         }
         let poses = self.service.fk_batch(&entry.robot, &configs, &opts)?;
         entry.count_poses(Protocol::Grpc, poses.len() as u64);
+        let packed_poses = convert::packed_to_pb(format, poses.iter());
+        let poses = match packed_poses {
+            Some(_) => Vec::new(),
+            None => poses.iter().map(convert::pose_to_pb).collect(),
+        };
         Ok(Response::new(pb::ForwardKinematicsBatchResponse {
             robot: req.robot,
             length_unit: convert::length_unit_to_pb(entry.robot.length_unit()) as i32,
-            poses: poses.iter().map(convert::pose_to_pb).collect(),
+            poses,
+            packed_poses,
         }))
     }
 

@@ -3,12 +3,10 @@
 use std::fmt;
 
 use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
-use serde::ser::SerializeSeq;
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use serde::{Deserialize, Deserializer, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::pose::Pose;
-use crate::kinematics::Transform;
+use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat, PoseValue};
 use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
 use crate::service::Configurations;
 
@@ -93,6 +91,9 @@ pub struct FkRequest {
     /// Reject values outside the joint limits (default true).
     #[serde(default = "default_true")]
     pub check_limits: bool,
+    /// How the pose and frames are written (default `full`): see [`PoseFormat`].
+    #[serde(default)]
+    pub pose_format: PoseFormat,
 }
 
 impl FkRequest {
@@ -116,6 +117,9 @@ pub struct FkBatchRequest {
     /// Reject values outside the joint limits (default true).
     #[serde(default = "default_true")]
     pub check_limits: bool,
+    /// How each pose is written (default `full`): see [`PoseFormat`].
+    #[serde(default)]
+    pub pose_format: PoseFormat,
 }
 
 impl FkBatchRequest {
@@ -176,6 +180,24 @@ impl JacobianBatchRequest {
     }
 }
 
+/// `POST /v1/robots/{name}/fk` response as it is written: [`FkOutput`] with
+/// the pose and frames in the request's `pose_format`, serialised straight
+/// from the transforms.
+///
+/// [`FkOutput`]: crate::api::pose::FkOutput
+#[derive(Debug, Serialize)]
+pub struct FkReply<'a> {
+    /// Robot name.
+    pub robot: &'a str,
+    /// Length unit of every position.
+    pub length_unit: LengthUnit,
+    /// Tool pose.
+    pub pose: FormattedPose,
+    /// Every frame, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames: Option<FormattedPoses<'a>>,
+}
+
 /// `POST /v1/robots/{name}/fk/batch` response.
 #[derive(Debug, Serialize, ToSchema)]
 #[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "poses": [{"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}]}))]
@@ -184,23 +206,11 @@ pub struct FkBatchResponse<'a> {
     pub robot: &'a str,
     /// Length unit of every position.
     pub length_unit: LengthUnit,
-    /// One pose per configuration, in request order.
-    #[schema(value_type = Vec<Pose>)]
-    pub poses: PosesSer<'a>,
-}
-
-/// Serialises transforms as [`Pose`]s without building them in memory first.
-#[derive(Debug)]
-pub struct PosesSer<'a>(pub &'a [Transform]);
-
-impl Serialize for PosesSer<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut seq = s.serialize_seq(Some(self.0.len()))?;
-        for t in self.0 {
-            seq.serialize_element(&Pose::from(t))?;
-        }
-        seq.end()
-    }
+    /// One pose per configuration, in request order, in the request's
+    /// `pose_format`: [`Pose`](crate::api::pose::Pose) objects (`full`), arrays of 12 numbers
+    /// (`matrix`) or of 3 (`position`).
+    #[schema(value_type = Vec<PoseValue>)]
+    pub poses: FormattedPoses<'a>,
 }
 
 impl<'de> Deserialize<'de> for Configurations {
@@ -280,6 +290,10 @@ pub struct WsRequest {
     /// Reject values outside the joint limits (default true).
     #[serde(default = "default_true")]
     pub check_limits: bool,
+    /// How the pose and frames of an FK reply are written (default `full`):
+    /// see [`PoseFormat`]. IK replies always carry the full pose.
+    #[serde(default)]
+    pub pose_format: PoseFormat,
 }
 
 impl WsRequest {
@@ -307,13 +321,15 @@ pub struct WsReply<'a> {
     /// Length unit of every position in this reply, on success.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub length_unit: Option<LengthUnit>,
-    /// The tool pose, on success (for IK: the pose at the joints found).
+    /// The tool pose, on success (for IK: the pose at the joints found,
+    /// always `full`), in the message's `pose_format`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub pose: Option<Pose>,
-    /// Every frame, when asked for.
+    #[schema(value_type = Option<PoseValue>)]
+    pub pose: Option<FormattedPose>,
+    /// Every frame, when asked for, in the message's `pose_format`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<Pose>>)]
-    pub frames: Option<PosesSer<'a>>,
+    #[schema(value_type = Option<Vec<PoseValue>>)]
+    pub frames: Option<FormattedPoses<'a>>,
     /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
     #[serde(flatten)]
     pub jacobian: Option<WsJacobian>,

@@ -6,13 +6,12 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
-use super::dto::{
-    FkBatchRequest, FkBatchResponse, FkRequest, PosesSer, RobotList, RobotSummaryDto,
-};
+use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
 use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
-use crate::api::pose::{FkOutput, Pose};
+use crate::api::pose::FkOutput;
+use crate::api::pose_format::{FormattedPose, FormattedPoses};
 use crate::error::Error;
 use crate::model::RobotSpec;
 use crate::registry::{Condition, Entry, Origin, PutMode};
@@ -284,7 +283,7 @@ pub async fn fk(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     JsonBody(req): JsonBody<FkRequest>,
-) -> ApiResult<Json<FkOutput>> {
+) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
     let opts = req.options();
@@ -292,13 +291,31 @@ pub async fn fk(
         .service
         .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
     entry.count_poses(Protocol::Rest, 1);
-    let frames = frames.map(|f| f.iter().map(Pose::from).collect());
-    Ok(Json(FkOutput {
-        robot: robot.name().to_string(),
+    let format = req.pose_format;
+    json_response(&FkReply {
+        robot: robot.name(),
         length_unit: robot.length_unit(),
-        pose: Pose::from(&pose),
-        frames,
-    }))
+        pose: FormattedPose::new(format, pose),
+        frames: frames
+            .as_deref()
+            .map(|poses| FormattedPoses { format, poses }),
+    })
+}
+
+/// A 200 `application/json` answer, serialised here (the body borrows from
+/// the handler's locals).
+fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
+    let bytes = serde_json::to_vec(body).map_err(|e| Error::Internal {
+        detail: e.to_string(),
+    })?;
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        )],
+        bytes,
+    )
+        .into_response())
 }
 
 /// Forward kinematics of many configurations; poses in request order.
@@ -322,22 +339,14 @@ pub async fn fk_batch(
         .service
         .fk_batch(robot, &req.configurations, &req.options())?;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
-    let body = FkBatchResponse {
+    json_response(&FkBatchResponse {
         robot: robot.name(),
         length_unit: robot.length_unit(),
-        poses: PosesSer(&poses),
-    };
-    let bytes = serde_json::to_vec(&body).map_err(|e| Error::Internal {
-        detail: e.to_string(),
-    })?;
-    Ok((
-        [(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("application/json"),
-        )],
-        bytes,
-    )
-        .into_response())
+        poses: FormattedPoses {
+            format: req.pose_format,
+            poses: &poses,
+        },
+    })
 }
 
 /// Unknown route: 404 problem.

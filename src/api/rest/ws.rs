@@ -9,10 +9,10 @@ use axum::response::{IntoResponse, Response};
 use futures_util::{FutureExt, SinkExt};
 
 use super::AppState;
-use super::dto::{PosesSer, WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
+use super::dto::{WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
-use crate::api::pose::Pose;
+use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
 use crate::error::Error;
 use crate::telemetry::{Protocol, StreamGuard};
 
@@ -20,7 +20,7 @@ use crate::telemetry::{Protocol, StreamGuard};
 const GOING_AWAY: u16 = 1001;
 
 /// Opens the FK stream for a robot. Each text message
-/// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?, "jacobian"?, "frame"?}`
+/// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?, "pose_format"?, "jacobian"?, "frame"?}`
 /// gets exactly one reply `{"id", "pose", "frames"?}` (plus `jacobian`,
 /// `manipulability`, `condition_number`, `singular`, `frame` with
 /// `"jacobian": true`) or `{"id", "error": problem}`, in order. A message
@@ -191,7 +191,7 @@ async fn ik_reply(
             let reply = WsReply {
                 id: &req.id,
                 length_unit: Some(length_unit),
-                pose: Some(Pose::from(&a.pose)),
+                pose: Some(FormattedPose::new(PoseFormat::Full, a.pose)),
                 frames: None,
                 jacobian: None,
                 ik: Some(WsIk {
@@ -237,20 +237,23 @@ fn fk_reply(
                     condition_number: item.condition_number,
                     singular: item.singular,
                 };
-                (item.pose, Some(jacobian))
+                (a.pose, Some(jacobian))
             }
             Err(e) => return error_reply(&req.id, &e),
         }
     } else {
-        (Pose::from(&pose), None)
+        (pose, None)
     };
     entry.count_poses(Protocol::WebSocket, 1);
     crate::telemetry::ws_message(true);
+    let format = req.pose_format;
     let reply = WsReply {
         id: &req.id,
         length_unit: Some(robot.length_unit()),
-        pose: Some(pose),
-        frames: frames.as_deref().map(PosesSer),
+        pose: Some(FormattedPose::new(format, pose)),
+        frames: frames
+            .as_deref()
+            .map(|poses| FormattedPoses { format, poses }),
         jacobian,
         ik: None,
         error: None,

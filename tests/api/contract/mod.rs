@@ -17,6 +17,7 @@
 //! Split by area; the case model and the front doors are in
 //! `crate::helpers::cross_protocol`.
 
+mod pose_format;
 mod poses;
 mod registry;
 mod vocabulary;

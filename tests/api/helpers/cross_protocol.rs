@@ -400,6 +400,7 @@ pub(crate) async fn over_grpc_stream(app: &TestApp, cases: &[Case]) -> Vec<Outco
                 fields: rpc_status_fields(&e),
                 raw: format!("{e:?}"),
             }),
+            StreamResult::PackedPose(p) => panic!("packed poses nobody asked for: {p:?}"),
         });
     }
     assert_eq!(out.len(), cases.len(), "one response per request");
