@@ -5,7 +5,11 @@
 # Builds in release, starts kinserve on loopback with a temporary data dir, runs
 # kinserve-load for every target, wrk against REST FK and /healthz when wrk is
 # installed (Debian: apt-get install wrk), and records the server's RSS
-# (idle, and peak over the whole run, from /proc/PID/status).
+# (idle, and peak over the whole run, from /proc/PID/status). Ends with the
+# issue-15 targets (ratios computed from rows measured in this run).
+#   BIN_DIR=/tmp/old scripts/bench.sh   # binaries of another build (no cargo build;
+#                                       # an old kinserve-load without --pose-format
+#                                       # runs every row in the full format)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,11 +20,17 @@ CONCURRENCY=${CONCURRENCY:-"1 16 64"}
 HTTP=127.0.0.1:${HTTP_PORT:-18480}
 GRPC=127.0.0.1:${GRPC_PORT:-18451}
 
-cargo build --release --bins --locked >&2
+BIN_DIR=${BIN_DIR:-}
+if [ -z "$BIN_DIR" ]; then
+  cargo build --release --bins --locked >&2
+  BIN_DIR=./target/release
+fi
+formats="full matrix position"
+"$BIN_DIR/kinserve-load" --help | grep -q -- --pose-format || formats="full"
 data=$(mktemp -d)
 log=$(mktemp)
 KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data \
-  KINSERVE_MAX_CONCURRENT_REQUESTS=4096 RUST_LOG=warn ./target/release/kinserve serve 2>"$log" &
+  KINSERVE_MAX_CONCURRENT_REQUESTS=4096 RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$log" &
 pid=$!
 trap 'kill $pid 2>/dev/null; wait $pid 2>/dev/null; rm -rf "$data" "$log"' EXIT
 for _ in $(seq 100); do
@@ -31,7 +41,7 @@ curl -fs "http://$HTTP/readyz" >/dev/null || { echo "server did not start" >&2; 
 sleep 1
 idle_rss=$(awk '/VmRSS/ {print $2}' /proc/$pid/status)
 
-load() { ./target/release/kinserve-load --http-addr "$HTTP" --grpc-addr "$GRPC" --robot "$ROBOT" \
+load() { "$BIN_DIR/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot "$ROBOT" \
   --duration "$DURATION" --warmup "$WARMUP" "$@"; }
 
 echo "# kinserve end-to-end figures"
@@ -51,16 +61,34 @@ done
 load_rss=$(awk '/VmHWM/ {print $2}' /proc/$pid/status)
 
 echo
-echo "# batches of 10,000 configurations, end to end (encoding included), 1 connection"
-for t in rest-batch grpc-batch; do
-  json=$(load --target "$t" --concurrency 1 --batch-size 10000 --json)
-  python3 - "$t" "$json" <<'PY'
+echo "# batches of 10,000 configurations, end to end (encoding included), 1 connection, by pose format"
+declare -A batch_us
+for f in $formats; do
+  for t in rest-batch grpc-batch; do
+    fmt=(); [ "$f" = full ] || fmt=(--pose-format "$f")
+    json=$(load --target "$t" --concurrency 1 --batch-size 10000 --json "${fmt[@]}")
+    batch_us[$t.$f]=$(python3 - "$t" "$f" "$json" <<'PY'
 import json, sys
-r = json.loads(sys.argv[2])
+r = json.loads(sys.argv[3])
 pps = r["poses_per_s"]
-print(f"{sys.argv[1]:<12} {r['requests_per_s']:8.1f} req/s  {pps:12.0f} poses/s  {1e6/pps if pps else float('nan'):6.3f} µs/pose  p50 {r['latency_us']['p50']/1000:.1f} ms")
+us = 1e6 / pps if pps else float("nan")
+print(f"{sys.argv[1]:<12} {sys.argv[2]:<9} {r['requests_per_s']:8.1f} req/s  {pps:12.0f} poses/s  {us:6.3f} µs/pose  p50 {r['latency_us']['p50']/1000:.1f} ms", file=sys.stderr)
+print(f"{us:.3f}")
 PY
-done
+)
+  done
+done 2>&1
+
+echo
+echo "# streams and health at 16 connections, compact format (the issue-15 ratios)"
+rate() { load "$@" --json | python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))'; }
+f16=matrix; [ "$formats" = full ] && f16=full
+fmt16=(); [ "$f16" = full ] || fmt16=(--pose-format "$f16")
+grpc_health16=$(rate --target grpc-health --concurrency 16)
+rest16=$(rate --target rest --concurrency 16 "${fmt16[@]}")
+grpc_stream16=$(rate --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}")
+ws16=$(rate --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}")
+echo "grpc-health $grpc_health16 req/s; rest ($f16) $rest16 poses/s; grpc-stream ($f16) $grpc_stream16 poses/s; ws ($f16) $ws16 poses/s"
 
 if command -v wrk >/dev/null; then
   echo
@@ -72,9 +100,15 @@ wrk.body   = '{"joints": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'
 wrk.headers["Content-Type"] = "application/json"
 LUA
   for c in 16 64; do
-    printf 'healthz   c=%-3s ' "$c"; wrk -t2 -c"$c" -d"$DURATION" --latency "http://$HTTP/healthz" | awk '/Requests\/sec/ {r=$2} /99%/ {p=$2} END {print r " req/s, p99 " p}'
-    printf 'fk        c=%-3s ' "$c"; wrk -t2 -c"$c" -d"$DURATION" --latency -s "$lua" "http://$HTTP/v1/robots/$ROBOT/fk" | awk '/Requests\/sec/ {r=$2} /99%/ {p=$2} END {print r " req/s, p99 " p}'
+    h=$(wrk -t2 -c"$c" -d"$DURATION" --latency "http://$HTTP/healthz")
+    f=$(wrk -t2 -c"$c" -d"$DURATION" --latency -s "$lua" "http://$HTTP/v1/robots/$ROBOT/fk")
+    for which in healthz fk; do
+      out=$h; [ $which = fk ] && out=$f
+      printf '%-9s c=%-3s %s\n' "$which" "$c" "$(echo "$out" | awk '/Requests\/sec/ {r=$2} /99%/ {p=$2} END {print r " req/s, p99 " p}')"
+    done
   done
+  wrk_h=$(echo "$h" | awk '/Requests\/sec/ {print $2}'); wrk_f=$(echo "$f" | awk '/Requests\/sec/ {print $2}')
+  wrk_hp=$(echo "$h" | awk '/99%/ {print $2}'); wrk_fp=$(echo "$f" | awk '/99%/ {print $2}')
   rm -f "$lua"
 else
   echo
@@ -84,3 +118,33 @@ fi
 peak_rss=$(awk '/VmHWM/ {print $2}' /proc/$pid/status)
 echo
 echo "# server RSS: idle $((idle_rss / 1024)) MB; peak during the table above (up to 64 connections) $((load_rss / 1024)) MB; peak over the whole run incl. 10,000-pose batches and wrk $((peak_rss / 1024)) MB"
+
+echo
+echo "# issue-15 targets (this run)"
+python3 - "${wrk_h:-0}" "${wrk_f:-0}" "${wrk_hp:-0}" "${wrk_fp:-0}" "${batch_us[rest-batch.$f16]}" "${batch_us[grpc-batch.$f16]}" \
+  "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" <<'PY'
+import sys
+a = sys.argv[1:]
+def ms(v):
+    v = str(v)
+    for unit, k in (("us", 1e-3), ("ms", 1.0), ("s", 1e3)):
+        if v.endswith(unit):
+            return float(v[: -len(unit)]) * k
+    return float(v)
+wh, wf, hp, fp = float(a[0]), float(a[1]), ms(a[2]), ms(a[3])
+rest_us, grpc_us = float(a[4]), float(a[5])
+gh, rest, gs, ws = (float(x) for x in a[6:10])
+idle, peak, fmt = int(a[10]), int(a[11]), a[12]
+rows = [
+    ("REST FK / healthz req/s (wrk, 64 conn)", ">= 0.9", f"{wf / wh:.2f}" if wh else "n/a"),
+    ("REST FK p99 / healthz p99 (wrk, 64 conn)", "<= 1.2", f"{fp / hp:.2f}" if hp else "n/a"),
+    (f"10,000-pose batch, {fmt}, REST µs/pose", "<= 1.0", f"{rest_us:.3f}"),
+    (f"10,000-pose batch, {fmt}, gRPC µs/pose", "<= 0.4", f"{grpc_us:.3f}"),
+    (f"gRPC stream ({fmt}, 16) / gRPC health (16)", ">= 20", f"{gs / gh:.1f}"),
+    (f"WebSocket ({fmt}, 16) / REST FK (16)", ">= 8", f"{ws / rest:.1f}"),
+    ("RSS idle MB", "<= 30", str(idle)),
+    ("RSS peak MB over the whole run", "<= 100", str(peak)),
+]
+for name, goal, got in rows:
+    print(f"{name:<46} goal {goal:<7} measured {got}")
+PY

@@ -303,9 +303,11 @@ pub async fn fk(
 }
 
 /// A 200 `application/json` answer, serialised here (the body borrows from
-/// the handler's locals).
+/// the handler's locals) into one buffer sized for a full pose answer (about
+/// 700 bytes), so a single answer is written without regrowing it.
 fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
-    let bytes = serde_json::to_vec(body).map_err(|e| Error::Internal {
+    let mut bytes = Vec::with_capacity(1024);
+    serde_json::to_writer(&mut bytes, body).map_err(|e| Error::Internal {
         detail: e.to_string(),
     })?;
     Ok((
