@@ -71,7 +71,8 @@ pub struct RestSettings {
     pub max_batch_body_bytes: usize,
     /// Longest time a request may take.
     pub request_timeout: Duration,
-    /// A WebSocket with no message from the client for this long is closed.
+    /// A WebSocket that makes no progress in either direction (no data
+    /// message from the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
     pub cors_origins: Vec<String>,
@@ -91,6 +92,8 @@ pub struct AppInner {
     pub metrics: PrometheusHandle,
     /// Admission control: one permit per request in flight.
     pub permits: Arc<Semaphore>,
+    /// Open WebSockets (shared with gRPC streams); a WebSocket holds a slot, not a request permit.
+    pub streams: crate::api::budget::StreamBudget,
 }
 
 struct SecurityAddon;
