@@ -333,7 +333,9 @@ pub struct ServeConfig {
     /// Most streams open at once (WebSockets and gRPC StreamForwardKinematics
     /// calls together); streams never take request permits. More are refused
     /// at once: 503 before the WebSocket upgrade, RESOURCE_EXHAUSTED on gRPC.
-    #[arg(long, env = "KINSERVE_MAX_STREAMS", default_value_t = 128)]
+    /// A WebSocket may hold up to about 2.5 × --max-body-bytes while a client
+    /// sends a fragmented message: 64 × 2.5 MiB keeps the worst case near 160 MiB.
+    #[arg(long, env = "KINSERVE_MAX_STREAMS", default_value_t = 64)]
     pub max_streams: usize,
     /// Most streams open at once on one connection (an HTTP/1 connection
     /// carries one WebSocket; HTTP/2 ones many).
@@ -457,7 +459,7 @@ impl ServeConfig {
             request_timeout: Duration::from_secs(30),
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
-            max_streams: 128,
+            max_streams: 64,
             max_streams_per_connection: 16,
             max_buffered_request_bytes: 64 << 20,
             shutdown_timeout: Duration::from_secs(10),

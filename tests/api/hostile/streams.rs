@@ -131,9 +131,11 @@ fn assert_memory_bounded(server: &Server, what: &str) -> (f64, f64) {
 /// Issue 13 item 1 at default settings on the real binary: 1,024 FK streams
 /// (4 HTTP/2 connections × 256) that send 40 requests each and never open
 /// their receive window. Each connection gets at most its
-/// `--max-streams-per-connection` (16) streams, the rest are refused at once
-/// with RESOURCE_EXHAUSTED; none takes a request permit, so REST and gRPC
-/// FK, `/readyz` and gRPC health are served throughout; memory stays bounded.
+/// `--max-streams-per-connection` (16) streams and all of them together the
+/// `--max-streams` budget (64, one of which the checker's WebSocket holds);
+/// the rest are refused at once with RESOURCE_EXHAUSTED. None takes a
+/// request permit, so REST and gRPC FK, `/readyz` and gRPC health are served
+/// throughout; memory stays bounded.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
     let dir = tempfile::tempdir().unwrap();
@@ -151,8 +153,8 @@ async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
         refused += stalled.refused;
         held.extend(stalled.accepted);
     }
-    assert_eq!(held.len(), 64, "16 streams per connection are served");
-    assert_eq!(refused, 1024 - 64);
+    assert_eq!(held.len(), 63, "the budget less the checker's WebSocket");
+    assert_eq!(refused, 1024 - 63);
     // While they are held: readiness, health, unary calls (the checker).
     let r = reqwest::get(format!("{}/readyz", server.http))
         .await
@@ -174,9 +176,11 @@ async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
         status,
         tonic_health::pb::health_check_response::ServingStatus::Serving as i32
     );
-    probe_stream(&server.grpc)
-        .await
-        .expect("a stream on another connection is served");
+    assert_eq!(
+        probe_stream(&server.grpc).await,
+        Err(Code::ResourceExhausted),
+        "the budget is spent"
+    );
     tokio::time::sleep(Duration::from_millis(500)).await;
     let report = checker.finish().await;
     assert_memory_bounded(&server, "1,024 stalled gRPC streams");
@@ -453,4 +457,61 @@ async fn big_grpc_messages_with_their_end_withheld_stay_within_the_byte_budget()
     let report = checker.finish().await;
     println!("withheld messages: {refused} refused at once; checker {report:?}");
     drop(bodies);
+}
+
+/// Issue 13 item 3 at default settings on the real binary: 1,500 WebSockets
+/// attempted, each holding an unfinished fragmented message of almost
+/// `--max-body-bytes` (1 MiB), and the head of a next fragment announcing
+/// 1 MiB more (which the server reserves room for). The stream budget (64)
+/// lets few in; the rest are refused with 503 before upgrading; memory stays
+/// bounded (the issue measured 2.17 GB before).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn websockets_holding_unfinished_big_messages_stay_within_the_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start_server(dir.path(), &[], None).await;
+    let checker = Checker::start(&server.http, &server.grpc, &server.ws()).await;
+    let url = format!("{}/v1/robots/planar_2dof/fk/stream", server.ws());
+    let part = vec![b'x'; 64 << 10];
+    let (mut held, mut refused) = (Vec::new(), 0);
+    for _ in 0..15 {
+        let batch = (0..100).map(|_| tokio_tungstenite::connect_async(url.clone()));
+        for r in futures_util::future::join_all(batch).await {
+            match r {
+                Ok((sock, _)) => held.push(sock),
+                Err(tokio_tungstenite::tungstenite::Error::Http(resp)) => {
+                    assert_eq!(resp.status(), 503);
+                    refused += 1;
+                }
+                Err(e) => panic!("upgrade failed: {e}"),
+            }
+        }
+    }
+    assert_eq!(held.len(), 63, "the budget less the checker's socket");
+    assert_eq!(refused, 1500 - 63);
+    // 15 fragments of 64 KiB each (960 KiB), the final one never sent.
+    for sock in &mut held {
+        for i in 0..15 {
+            let op = if i == 0 {
+                OpCode::Data(Data::Text)
+            } else {
+                OpCode::Data(Data::Continue)
+            };
+            sock.send(Message::Frame(Frame::message(part.clone(), op, false)))
+                .await
+                .expect("fragment sent");
+        }
+        // A continuation frame's head announcing 1 MiB (masked, 64-bit length), no payload.
+        let mut head = vec![0x00, 0x80 | 127];
+        head.extend_from_slice(&(1u64 << 20).to_be_bytes());
+        head.extend_from_slice(&[1, 2, 3, 4]);
+        let tokio_tungstenite::MaybeTlsStream::Plain(tcp) = sock.get_mut() else {
+            panic!("plain TCP");
+        };
+        tokio::io::AsyncWriteExt::write_all(tcp, &head)
+            .await
+            .unwrap();
+    }
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    assert_memory_bounded(&server, "63 WebSockets holding 960 KiB unfinished messages");
+    checker.finish().await;
 }
