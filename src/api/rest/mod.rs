@@ -420,7 +420,11 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/fk/batch",
             axum::routing::post(handlers::fk_batch),
         )
-        .route("/v1/robots/{name}/fk/stream", get(ws::stream))
+        // GET: the HTTP/1.1 upgrade; CONNECT: WebSockets over HTTP/2 (RFC 8441).
+        .route(
+            "/v1/robots/{name}/fk/stream",
+            get(ws::stream).connect(ws::stream),
+        )
         .route(
             "/v1/robots/{name}/jacobian",
             axum::routing::post(velocity::jacobian),

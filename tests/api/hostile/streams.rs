@@ -515,3 +515,84 @@ async fn websockets_holding_unfinished_big_messages_stay_within_the_budget() {
     assert_memory_bounded(&server, "63 WebSockets holding 960 KiB unfinished messages");
     checker.finish().await;
 }
+
+/// WebSockets over HTTP/2 (extended CONNECT, RFC 8441) on one connection
+/// `n` times: the response statuses, the streams kept open.
+async fn h2_websockets(http: &str, n: usize) -> (Vec<u16>, Vec<Held>) {
+    let tcp = tokio::net::TcpStream::connect(addr_of(http)).await.unwrap();
+    let (mut send, conn) = h2::client::handshake(tcp).await.unwrap();
+    tokio::spawn(async move {
+        let _ = conn.await;
+    });
+    // The server's SETTINGS (ENABLE_CONNECT_PROTOCOL) come with the handshake.
+    for _ in 0..100 {
+        if send.is_extended_connect_protocol_enabled() {
+            break;
+        }
+        send = send.ready().await.unwrap();
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(send.is_extended_connect_protocol_enabled());
+    let (mut statuses, mut open) = (Vec::new(), Vec::new());
+    for _ in 0..n {
+        let mut req = http::Request::builder()
+            .method("CONNECT")
+            .uri(format!("{http}/v1/robots/planar_2dof/fk/stream"))
+            .header("sec-websocket-version", "13")
+            .body(())
+            .unwrap();
+        req.extensions_mut()
+            .insert(h2::ext::Protocol::from_static("websocket"));
+        send = send.ready().await.unwrap();
+        let (resp, body) = send.send_request(req, false).unwrap();
+        let resp = tokio::time::timeout(EVENTUALLY, resp)
+            .await
+            .unwrap()
+            .unwrap();
+        statuses.push(resp.status().as_u16());
+        open.push((body, resp));
+    }
+    (statuses, open)
+}
+
+/// HTTP/2 carries many WebSockets on one connection: past
+/// `--max-streams-per-connection` the upgrade is refused with 503, while
+/// another connection still gets its own.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn websockets_over_one_http2_connection_are_limited_per_connection() {
+    let app = spawn_app_with(|c| c.max_streams_per_connection = 3).await;
+    let checker = Checker::start(&app.http, &app.grpc, &app.ws).await;
+    let (statuses, mut open) = h2_websockets(&app.http, 5).await;
+    assert_eq!(statuses, [200, 200, 200, 503, 503]);
+    // An accepted one is a working WebSocket: one text frame (masked with
+    // zeros), one reply.
+    let msg = br#"{"id": 5, "joints": [0, 0]}"#;
+    let mut frame = vec![0x81, 0x80 | msg.len() as u8, 0, 0, 0, 0];
+    frame.extend_from_slice(msg);
+    let (send, resp) = &mut open[0];
+    send.send_data(Bytes::from(frame), false).unwrap();
+    let body = resp.body_mut();
+    let mut got = Vec::new();
+    let reply = tokio::time::timeout(EVENTUALLY, async {
+        loop {
+            let chunk = body.data().await.expect("a reply").unwrap();
+            let _ = body.flow_control().release_capacity(chunk.len());
+            got.extend_from_slice(&chunk);
+            // A text frame, 16-bit length (the reply is 126 to 65,535 bytes).
+            if got.len() >= 4 {
+                assert_eq!(got[..2], [0x81, 126], "{got:?}");
+                let len = u16::from_be_bytes([got[2], got[3]]) as usize;
+                if got.len() >= 4 + len {
+                    return serde_json::from_slice::<serde_json::Value>(&got[4..4 + len]).unwrap();
+                }
+            }
+        }
+    })
+    .await
+    .expect("the reply comes");
+    assert_eq!(reply["id"], 5, "{reply}");
+    assert!(reply["pose"].is_object(), "{reply}");
+    let (statuses, _open2) = h2_websockets(&app.http, 1).await;
+    assert_eq!(statuses, [200], "another connection has its own share");
+    checker.finish().await;
+}
