@@ -202,10 +202,7 @@ impl http_body::Body for Charged {
             let _ = this.reservation.resize(0);
             metrics::counter!("kinserve_grpc_rejected_total", "reason" => "buffered_bytes")
                 .increment(1);
-            tracing::debug!(
-                budget = this.reservation.bytes(),
-                "gRPC request refused: the buffered request bytes budget is spent"
-            );
+            tracing::debug!("gRPC request refused: the buffered request bytes budget is spent");
             return Poll::Ready(Some(Err(Status::from(Error::Overloaded))));
         }
         Poll::Ready(Some(Ok(frame)))
