@@ -9,8 +9,10 @@
 //! limit (handlers, and the admission check, run only after decoding). Here
 //! each request's body reserves, from the shared [`ByteBudget`], the
 //! declared length of the message it is delivering (the framing is
-//! followed) before the bytes reach tonic; when the message is complete and
-//! tonic asks for more, they are given back.
+//! followed) before the bytes reach tonic. A complete message stays charged
+//! until the next one starts or the call ends: tonic keeps a unary call's
+//! decoded message until the request body has ended, and a client may never
+//! end it.
 //! The first [`FREE_BYTES`] a request holds are not charged: small calls
 //! (every FK call, health checks) never depend on the budget, and what they
 //! hold is bounded by the streams per connection and the HTTP/2 windows
@@ -85,7 +87,7 @@ where
     }
 }
 
-/// Where a body is in the gRPC message framing.
+/// Where a body is in the gRPC message framing, and what tonic may hold.
 #[derive(Clone, Debug, Default)]
 struct Framing {
     /// Header bytes seen of the message under way (0 to 5).
@@ -96,6 +98,13 @@ struct Framing {
     remaining: u64,
     /// Its bytes seen so far (header included).
     partial: usize,
+    /// Size of the last complete message: tonic may hold it decoded (a
+    /// unary call holds its message until the request body ends) until the
+    /// next message starts.
+    last: usize,
+    /// Messages completed since tonic last asked for data, before `last`:
+    /// still in tonic's buffer, not decoded yet.
+    earlier: usize,
 }
 
 impl Framing {
@@ -104,6 +113,10 @@ impl Framing {
         let mut rest = data;
         while !rest.is_empty() {
             if self.header_seen < HEADER {
+                if self.header_seen == 0 {
+                    // A new message: the last one was delivered with it.
+                    self.earlier += std::mem::take(&mut self.last);
+                }
                 let (byte, tail) = rest.split_at(1);
                 if self.header_seen > 0 {
                     self.length =
@@ -130,8 +143,27 @@ impl Framing {
 
     fn finish_if_complete(&mut self) {
         if self.header_seen == HEADER && self.remaining == 0 {
-            *self = Framing::default();
+            self.last = std::mem::take(&mut self.partial);
+            self.header_seen = 0;
+            self.length = 0;
         }
+    }
+
+    /// tonic asks for more data only once it has decoded every complete
+    /// message it holds (and, on a stream, the handler took them one by one).
+    fn asked_for_more(&mut self) {
+        self.earlier = 0;
+    }
+
+    /// Bytes tonic may hold: the messages not decoded yet, the whole declared
+    /// length of the one under way (tonic allocates it when it has the
+    /// header) and the last complete one.
+    fn held(&self) -> usize {
+        let rest = usize::try_from(self.remaining).unwrap_or(usize::MAX);
+        self.partial
+            .saturating_add(rest)
+            .saturating_add(self.last)
+            .saturating_add(self.earlier)
     }
 }
 
@@ -140,9 +172,6 @@ struct Charged {
     inner: Body,
     reservation: Reservation,
     framing: Framing,
-    /// Bytes delivered to tonic that it may still hold: the message under
-    /// way, plus messages completed since tonic last asked for data.
-    held: usize,
 }
 
 impl Charged {
@@ -151,27 +180,21 @@ impl Charged {
             inner,
             reservation,
             framing: Framing::default(),
-            held: 0,
         }
     }
 
-    /// Bytes to charge for: what tonic holds (`held`) and the rest of the
-    /// message under way, since tonic allocates a message's whole declared
-    /// length as soon as it has its header.
-    fn charge_for(held: usize, framing: &Framing) -> usize {
-        let rest = usize::try_from(framing.remaining).unwrap_or(usize::MAX);
-        held.saturating_add(rest).saturating_sub(FREE_BYTES)
+    /// The charge for what `framing` says tonic holds.
+    fn charge_for(framing: &Framing) -> usize {
+        framing.held().saturating_sub(FREE_BYTES)
     }
 
     /// Charges `data` before it is delivered; `false` if the budget cannot cover it.
     fn charge(&mut self, data: &Bytes) -> bool {
         let mut framing = self.framing.clone();
         framing.advance(data.chunk());
-        let held = self.held + data.len();
-        if !self.reservation.resize(Charged::charge_for(held, &framing)) {
+        if !self.reservation.resize(Charged::charge_for(&framing)) {
             return false;
         }
-        self.held = held;
         self.framing = framing;
         true
     }
@@ -186,12 +209,8 @@ impl http_body::Body for Charged {
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Bytes>, Status>>> {
         let this = self.get_mut();
-        // tonic asks for data only when it has decoded every complete message
-        // it holds: only the message under way is still held.
-        this.held = this.framing.partial;
-        let _ = this
-            .reservation
-            .resize(Charged::charge_for(this.held, &this.framing));
+        this.framing.asked_for_more();
+        let _ = this.reservation.resize(Charged::charge_for(&this.framing));
         let frame = match Pin::new(&mut this.inner).poll_frame(cx) {
             Poll::Ready(Some(Ok(frame))) => frame,
             other => return other,
@@ -236,13 +255,22 @@ mod tests {
         for split in 1..bytes.len() {
             let mut f = Framing::default();
             for chunk in bytes.chunks(split) {
+                f.asked_for_more();
                 f.advance(chunk);
             }
             assert_eq!(f.partial, 0, "split {split}");
+            assert_eq!(f.last, 305, "split {split}: the last message stays held");
         }
         let mut f = Framing::default();
         f.advance(&bytes[..bytes.len() - 1]);
         assert_eq!(f.partial, 304, "the last message is one byte short");
+        assert_eq!(
+            f.held(),
+            15 + 5 + 305,
+            "all of it, declared length included"
+        );
+        f.asked_for_more();
+        assert_eq!(f.held(), 305, "the complete ones were decoded");
     }
 
     #[tokio::test]
@@ -271,6 +299,30 @@ mod tests {
             "the refused call holds nothing"
         );
         drop(first);
+        assert_eq!(budget.in_use(), 0);
+    }
+
+    /// A unary message complete but its request body never ended: tonic
+    /// holds it (decoded) waiting for the end, so it stays charged.
+    #[tokio::test]
+    async fn a_complete_message_stays_charged_until_the_body_ends() {
+        use http_body_util::BodyExt;
+        let budget = ByteBudget::new(FREE_BYTES * 8);
+        let (tx, rx) = tokio::sync::mpsc::channel::<Result<Frame<Bytes>, Status>>(1);
+        let rx = tokio_stream::wrappers::ReceiverStream::new(rx);
+        let mut body = Charged::new(
+            Body::new(http_body_util::StreamBody::new(rx)),
+            budget.reservation(),
+        );
+        tx.try_send(Ok(Frame::data(Bytes::from(message(FREE_BYTES * 3)))))
+            .unwrap();
+        assert!(body.frame().await.unwrap().is_ok());
+        assert_eq!(budget.in_use(), FREE_BYTES * 2 + 5);
+        // tonic asks for the end of the body: nothing comes; still charged.
+        let pending = futures_util::FutureExt::now_or_never(body.frame());
+        assert!(pending.is_none());
+        assert_eq!(budget.in_use(), FREE_BYTES * 2 + 5);
+        drop(body);
         assert_eq!(budget.in_use(), 0);
     }
 }
