@@ -180,7 +180,14 @@ async fn run(mut socket: WebSocket, state: AppState, name: String, permit: Strea
                 Some(Ok(m)) => m,
             }
         };
-        match answer_pending(&mut socket, &state, &name, first, idle).await {
+        // Writing the answers must finish within the idle timeout from the
+        // message (a client that does not read makes no progress); after a
+        // ping, within what is left of it.
+        let send_by = match first {
+            Message::Ping(_) | Message::Pong(_) => deadline,
+            _ => Instant::now() + idle,
+        };
+        match answer_pending(&mut socket, &state, &name, first, send_by).await {
             Some(true) => deadline = Instant::now() + idle,
             Some(false) => {}
             None => return,
@@ -190,17 +197,16 @@ async fn run(mut socket: WebSocket, state: AppState, name: String, permit: Strea
 
 /// Answers `first` and every message already received, then flushes once
 /// (a pipelining client gets its replies in one write instead of one each).
-/// Writing must finish within the idle timeout (a client that does not read
-/// makes no progress). `Some(true)` when replies went out, `Some(false)` when
-/// there was nothing to answer (pings), `None` when the socket is done.
+/// Writing must finish by `send_by`. `Some(true)` when replies went out,
+/// `Some(false)` when there was nothing to answer (pings), `None` when the
+/// socket is done.
 async fn answer_pending(
     socket: &mut WebSocket,
     state: &AppState,
     name: &str,
     first: Message,
-    idle: Duration,
+    send_by: Instant,
 ) -> Option<bool> {
-    let send_by = Instant::now() + idle;
     let mut replied = false;
     let mut next = Some(first);
     while let Some(msg) = next.take() {
