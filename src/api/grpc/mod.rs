@@ -20,7 +20,7 @@ use tokio_stream::{Stream, StreamExt};
 use tokio_util::sync::CancellationToken;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::api::budget::{ByteBudget, ConnectionStreams, StreamBudget};
+use crate::api::budget::{ByteBudget, StreamBudget};
 use crate::error::Error;
 use crate::registry::{Condition, PutMode};
 use crate::service::{Configurations, Service};
@@ -228,8 +228,7 @@ impl GrpcService {
 }
 
 impl GrpcService {
-    /// Answers a stream's messages in order until it ends; returns the status
-    /// to end it with (`None`: a clean end, or the client is gone).
+    /// Answers a stream's messages in order until it ends; returns how it ends.
     ///
     /// A stream that makes no progress in either direction for the idle
     /// timeout is closed: waiting for the client's next message and waiting
@@ -239,7 +238,7 @@ impl GrpcService {
         &self,
         mut inbound: Streaming<pb::StreamForwardKinematicsRequest>,
         replies: &streams::Replies<pb::StreamForwardKinematicsResponse>,
-    ) -> Option<Status> {
+    ) -> End {
         let idle = self.settings.stream_idle_timeout;
         let idle_status = || {
             Status::deadline_exceeded(format!(
@@ -248,36 +247,63 @@ impl GrpcService {
         };
         loop {
             let next = tokio::select! {
-                _ = self.shutdown.cancelled() => return Some(Status::unavailable("server shutting down")),
-                _ = replies.closed() => return None, // client cancelled
+                _ = self.shutdown.cancelled() => return End::Status(Status::unavailable("server shutting down")),
+                _ = replies.closed() => return End::Quiet, // client cancelled
                 r = tokio::time::timeout(idle, inbound.message()) => r,
             };
             let msg = match next {
-                Err(_) => return Some(idle_status()),
+                Err(_) => return End::Idle(idle_status()),
                 Ok(Ok(Some(m))) => m,
-                Ok(Ok(None)) => return None,
+                Ok(Ok(None)) => return End::Quiet,
                 // Undecodable or oversized message (or the buffered bytes
                 // budget spent): report it and end (the transport state is unknown).
-                Ok(Err(status)) => return Some(oversize::remap_status(status)),
+                Ok(Err(status)) => return End::Status(oversize::remap_status(status)),
             };
             // A bug (panic) while answering ends the stream with INTERNAL, not
             // with a clean end of stream the client would take for success.
             let resp = match self.stream_reply(msg).await {
                 Ok(resp) => resp,
-                Err(e) => return Some(Status::from(e)),
+                Err(e) => return End::Status(Status::from(e)),
             };
             // Waits while the client reads slowly (bounded buffering,
             // end-to-end flow control), but not longer than the idle timeout.
             let sent = tokio::select! {
-                _ = self.shutdown.cancelled() => return Some(Status::unavailable("server shutting down")),
+                _ = self.shutdown.cancelled() => return End::Status(Status::unavailable("server shutting down")),
                 r = tokio::time::timeout(idle, replies.send(resp)) => r,
             };
             match sent {
                 Ok(true) => {}
-                Ok(false) => return None,
-                Err(_) => return Some(idle_status()),
+                Ok(false) => return End::Quiet,
+                Err(_) => return End::Idle(idle_status()),
             }
         }
+    }
+}
+
+/// How a stream's task ended.
+enum End {
+    /// Cleanly, or the client went away: nothing to send.
+    Quiet,
+    /// With a status for the client.
+    Status(Status),
+    /// Closed for idleness (the client may not be taking its replies).
+    Idle(Status),
+}
+
+/// After a stream closed for idleness: if its response is not done within
+/// [`streams::STUCK_GRACE`] (the HTTP/2 layer still waits for the client's
+/// window to send a reply or the final status), closes its connection, the
+/// only way to end that stream (see `streams`). A client that reads gets
+/// the final status at once and keeps its connection.
+async fn close_if_stuck(done: CancellationToken, connection: Option<streams::GrpcConnInfo>) {
+    let finished = tokio::time::timeout(streams::STUCK_GRACE, done.cancelled()).await;
+    if finished.is_err()
+        && let Some(c) = connection
+    {
+        tracing::info!(
+            "closing a gRPC connection: a stream on it stayed blocked on the client's receive window past the idle timeout"
+        );
+        c.close.cancel();
     }
 }
 
@@ -432,9 +458,10 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<Streaming<pb::StreamForwardKinematicsRequest>>,
     ) -> Result<Response<Self::StreamForwardKinematicsStream>, Status> {
+        let connection = req.extensions().get::<streams::GrpcConnInfo>().cloned();
         let permit = self
             .streams
-            .try_open(req.extensions().get::<ConnectionStreams>())
+            .try_open(connection.as_ref().map(|c| &c.streams))
             .map_err(|e| {
                 metrics::counter!("kinserve_grpc_rejected_total", "reason" => "streams")
                     .increment(1);
@@ -446,10 +473,18 @@ impl KinematicsService for GrpcService {
         tokio::spawn(async move {
             // The stream's budget slot, never a request permit: open streams
             // do not take from the requests in flight.
-            let _permit = permit;
-            let _stream = StreamGuard::open(Protocol::Grpc);
-            if let Some(status) = this.pump(inbound, &replies).await {
-                replies.end(status);
+            let stream = StreamGuard::open(Protocol::Grpc);
+            let end = this.pump(inbound, &replies).await;
+            drop((permit, stream));
+            match end {
+                End::Quiet => {}
+                End::Status(status) => {
+                    replies.end(status);
+                }
+                End::Idle(status) => {
+                    let done = replies.end(status);
+                    close_if_stuck(done, connection).await;
+                }
             }
         });
         Ok(Response::new(Box::pin(outbound)))

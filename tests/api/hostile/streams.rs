@@ -192,10 +192,11 @@ async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
 
 /// A stream whose client sends requests but never reads (its receive window
 /// stays closed, so the server's send blocks) is closed after
-/// `--stream-idle-timeout`: its budget slot is given back. Here the budget
-/// is 2 streams (the checker's WebSocket and the stalled stream): a new
-/// stream is refused while the stalled one is open, and served once the
-/// idle timeout has closed it.
+/// `--stream-idle-timeout`: its budget slot is given back, and since HTTP/2
+/// cannot end that one stream while the client's window is closed, its
+/// connection is closed too. Here the budget is 2 streams (the checker's
+/// WebSocket and the stalled stream): a new stream is refused while the
+/// stalled one is open, and served once the idle timeout has closed it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
     let app = spawn_app_with(|c| {
@@ -224,8 +225,15 @@ async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
     })
     .await;
     assert!(served.is_ok(), "the stalled stream was never closed");
+    // The HTTP/2 layer cannot reset that one stream while it waits for the
+    // client's window: its connection is closed (shortly after).
+    let (_send, mut resp) = stalled.accepted.into_iter().next().unwrap();
+    let ended = tokio::time::timeout(EVENTUALLY, resp.body_mut().data()).await;
+    assert!(
+        matches!(ended, Ok(None | Some(Err(_)))),
+        "the stalled connection is still open: {ended:?}"
+    );
     checker.finish().await;
-    drop(stalled);
 }
 
 // ---------------------------------------------------------------- WebSockets
