@@ -247,12 +247,12 @@ impl GrpcService {
         };
         loop {
             let next = tokio::select! {
-                _ = self.shutdown.cancelled() => return End::Status(Status::unavailable("server shutting down")),
+                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
                 _ = replies.closed() => return End::Quiet, // client cancelled
                 r = tokio::time::timeout(idle, inbound.message()) => r,
             };
             let msg = match next {
-                Err(_) => return End::Idle(idle_status()),
+                Err(_) => return End::Closed(idle_status()),
                 Ok(Ok(Some(m))) => m,
                 Ok(Ok(None)) => return End::Quiet,
                 // Undecodable or oversized message (or the buffered bytes
@@ -268,13 +268,13 @@ impl GrpcService {
             // Waits while the client reads slowly (bounded buffering,
             // end-to-end flow control), but not longer than the idle timeout.
             let sent = tokio::select! {
-                _ = self.shutdown.cancelled() => return End::Status(Status::unavailable("server shutting down")),
+                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
                 r = tokio::time::timeout(idle, replies.send(resp)) => r,
             };
             match sent {
                 Ok(true) => {}
                 Ok(false) => return End::Quiet,
-                Err(_) => return End::Idle(idle_status()),
+                Err(_) => return End::Closed(idle_status()),
             }
         }
     }
@@ -286,11 +286,12 @@ enum End {
     Quiet,
     /// With a status for the client.
     Status(Status),
-    /// Closed for idleness (the client may not be taking its replies).
-    Idle(Status),
+    /// Closed by the server (idle timeout, shutdown) while the client may
+    /// not be taking its replies.
+    Closed(Status),
 }
 
-/// After a stream closed for idleness: if its response is not done within
+/// After the server closed a stream (idle timeout, shutdown): if its response is not done within
 /// [`streams::STUCK_GRACE`] (the HTTP/2 layer still waits for the client's
 /// window to send a reply or the final status), closes its connection, the
 /// only way to end that stream (see `streams`). A client that reads gets
@@ -301,7 +302,7 @@ async fn close_if_stuck(done: CancellationToken, connection: Option<streams::Grp
         && let Some(c) = connection
     {
         tracing::info!(
-            "closing a gRPC connection: a stream on it stayed blocked on the client's receive window past the idle timeout"
+            "closing a gRPC connection: a closed stream on it stays blocked on the client's receive window"
         );
         c.close.cancel();
     }
@@ -481,7 +482,7 @@ impl KinematicsService for GrpcService {
                 End::Status(status) => {
                     replies.end(status);
                 }
-                End::Idle(status) => {
+                End::Closed(status) => {
                     let done = replies.end(status);
                     close_if_stuck(done, connection).await;
                 }
