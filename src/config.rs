@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use crate::api::budget::StreamBudget;
 use crate::api::grpc::GrpcSettings;
 use crate::api::rest::RestSettings;
 use crate::model::ModelLimits;
@@ -323,9 +324,32 @@ pub struct ServeConfig {
     /// Longest time a client may take to send its request headers (HTTP/1).
     #[arg(long, env = "KINSERVE_HEADER_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub header_timeout: Duration,
-    /// A WebSocket or gRPC stream with no message from the client for this long is closed.
+    /// A WebSocket or gRPC stream that makes no progress in either direction
+    /// for this long is closed: no data message from the client and no reply
+    /// taken by it (pings do not count; a reply the client does not read is
+    /// no progress).
     #[arg(long, env = "KINSERVE_STREAM_IDLE_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
     pub stream_idle_timeout: Duration,
+    /// Most streams open at once (WebSockets and gRPC StreamForwardKinematics
+    /// calls together); streams never take request permits. More are refused
+    /// at once: 503 before the WebSocket upgrade, RESOURCE_EXHAUSTED on gRPC.
+    /// A WebSocket may hold up to about 2.5 × --max-body-bytes while a client
+    /// sends a fragmented message: 64 × 2.5 MiB keeps the worst case near 160 MiB.
+    #[arg(long, env = "KINSERVE_MAX_STREAMS", default_value_t = 64)]
+    pub max_streams: usize,
+    /// Most streams open at once on one connection (an HTTP/1 connection
+    /// carries one WebSocket; HTTP/2 ones many).
+    #[arg(
+        long,
+        env = "KINSERVE_MAX_STREAMS_PER_CONNECTION",
+        default_value_t = 16
+    )]
+    pub max_streams_per_connection: usize,
+    /// Bytes of gRPC request messages held at once, over all calls, before
+    /// they can be decoded (each call's first 64 KiB are not counted); a call
+    /// that needs more fails at once with RESOURCE_EXHAUSTED.
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_REQUEST_BYTES", default_value_t = 64 << 20)]
+    pub max_buffered_request_bytes: usize,
     /// How long shutdown waits for in-flight requests before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
@@ -359,6 +383,9 @@ impl std::fmt::Debug for ServeConfig {
             request_timeout,
             header_timeout,
             stream_idle_timeout,
+            max_streams,
+            max_streams_per_connection,
+            max_buffered_request_bytes,
             shutdown_timeout,
             ik_time_limit,
         } = self;
@@ -384,6 +411,9 @@ impl std::fmt::Debug for ServeConfig {
             .field("request_timeout", request_timeout)
             .field("header_timeout", header_timeout)
             .field("stream_idle_timeout", stream_idle_timeout)
+            .field("max_streams", max_streams)
+            .field("max_streams_per_connection", max_streams_per_connection)
+            .field("max_buffered_request_bytes", max_buffered_request_bytes)
             .field("shutdown_timeout", shutdown_timeout)
             .field("ik_time_limit", ik_time_limit)
             .finish()
@@ -429,6 +459,9 @@ impl ServeConfig {
             request_timeout: Duration::from_secs(30),
             header_timeout: Duration::from_secs(10),
             stream_idle_timeout: Duration::from_secs(300),
+            max_streams: 64,
+            max_streams_per_connection: 16,
+            max_buffered_request_bytes: 64 << 20,
             shutdown_timeout: Duration::from_secs(10),
             ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
@@ -452,8 +485,14 @@ impl ServeConfig {
             max_message_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
+            max_buffered_request_bytes: self.max_buffered_request_bytes,
             access_log: self.access_log,
         }
+    }
+
+    /// The open-streams budget shared by WebSockets and gRPC streams.
+    pub fn stream_budget(&self) -> StreamBudget {
+        StreamBudget::new(self.max_streams, self.max_streams_per_connection)
     }
 
     /// The service limits this configuration sets.

@@ -134,12 +134,14 @@ impl App {
             tokio::spawn(syncer.run(applier(service.clone()), shutdown.clone()));
         }
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
+        let streams = config.stream_budget();
         let state = AppState::new(AppInner {
             service: service.clone(),
             settings: config.rest_settings(),
             shutdown: shutdown.clone(),
             metrics: crate::telemetry::metrics_handle(),
             permits: permits.clone(),
+            streams: streams.clone(),
         });
         service.record_robot_count();
         let router = rest::router(state);
@@ -155,6 +157,7 @@ impl App {
             service.clone(),
             config.grpc_settings(),
             permits,
+            streams,
             shutdown.clone(),
         );
         let http_server = serve_http(
@@ -304,10 +307,15 @@ async fn serve_http(
         // Set by the first request that reaches the router on this connection.
         let seen = Arc::new(AtomicBool::new(false));
         let flag = seen.clone();
-        let service = router.clone().map_request(move |req| {
-            flag.store(true, Ordering::Release);
-            req
-        });
+        // The connection's open streams (WebSockets), for the per-connection budget.
+        let streams = crate::api::budget::ConnectionStreams::default();
+        let service = router
+            .clone()
+            .map_request(move |mut req: axum::http::Request<_>| {
+                flag.store(true, Ordering::Release);
+                req.extensions_mut().insert(streams.clone());
+                req
+            });
         let builder = builder.clone();
         let watcher = graceful.watcher();
         tokio::spawn(async move {

@@ -78,7 +78,7 @@ pub const FAMILIES: &[(&str, &str)] = &[
     ),
     (
         "kinserve_http_rejected_total",
-        "HTTP requests refused before a handler ran, by reason.",
+        "HTTP requests refused before a handler ran, by reason (overloaded: no request permit; streams: the open-streams budget refused a WebSocket).",
     ),
     (
         "kinserve_grpc_requests_total",
@@ -90,7 +90,7 @@ pub const FAMILIES: &[(&str, &str)] = &[
     ),
     (
         "kinserve_grpc_rejected_total",
-        "gRPC calls refused before a handler ran, by reason.",
+        "gRPC calls refused before a handler ran, by reason (overloaded: no request permit; streams: the open-streams budget; buffered_bytes: the buffered request bytes budget).",
     ),
     (
         "kinserve_ws_messages_total",

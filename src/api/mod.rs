@@ -19,6 +19,7 @@
 
 use crate::error::Error;
 
+pub mod budget;
 pub mod grpc;
 pub mod pose;
 pub mod pose_format;

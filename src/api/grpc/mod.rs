@@ -1,9 +1,11 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and reflection.
 
+mod buffered;
 mod convert;
 mod grpc_metrics;
 mod oversize;
 pub mod status;
+mod streams;
 mod velocity;
 
 use std::pin::Pin;
@@ -12,12 +14,13 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
-use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc};
-use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
+use tokio_stream::wrappers::TcpListenerStream;
 use tokio_stream::{Stream, StreamExt};
 use tokio_util::sync::CancellationToken;
 use tonic::{Request, Response, Status, Streaming};
 
+use crate::api::budget::{ByteBudget, StreamBudget};
 use crate::error::Error;
 use crate::registry::{Condition, PutMode};
 use crate::service::{Configurations, Service};
@@ -33,9 +36,6 @@ pub mod pb {
 }
 
 use pb::kinematics_service_server::{KinematicsService, KinematicsServiceServer};
-
-/// Stream responses buffered per stream before the server stops reading (flow control).
-const STREAM_BUFFER: usize = 16;
 
 /// HTTP/2 receive window of one stream: what a client may send ahead on a stream
 /// the server has stopped reading (a slow reader of the FK stream).
@@ -56,6 +56,12 @@ const STREAM_WINDOW: u32 = 64 << 10;
 /// HTTP/2 receive window of a connection (sets h2's small-frame budget to half of it).
 const CONNECTION_WINDOW: u32 = 16 << 20;
 
+/// Calls (unary and streaming) open at once on one HTTP/2 connection
+/// (`SETTINGS_MAX_CONCURRENT_STREAMS`); a client past it waits for one to
+/// finish. tonic's default is no limit. Streaming calls have their own,
+/// smaller budget per connection (`--max-streams-per-connection`).
+const MAX_CALLS_PER_CONNECTION: u32 = 256;
+
 /// What the gRPC adapter is configured with (start-up builds it from the
 /// command line; the adapter never sees the command line itself).
 #[derive(Clone, Debug)]
@@ -64,8 +70,12 @@ pub struct GrpcSettings {
     pub max_message_bytes: usize,
     /// Longest time a unary call may take.
     pub request_timeout: Duration,
-    /// A stream with no message from the client for this long is closed.
+    /// A stream that makes no progress in either direction (no message from
+    /// the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
+    /// Bytes of request messages the server holds, over all calls, before it
+    /// can decode them (see `buffered`); past it, calls fail RESOURCE_EXHAUSTED.
+    pub max_buffered_request_bytes: usize,
     /// One access-log line per call (target `kinserve::access`).
     pub access_log: bool,
 }
@@ -76,6 +86,7 @@ pub struct GrpcService {
     service: Arc<Service>,
     settings: Arc<GrpcSettings>,
     permits: Arc<Semaphore>,
+    streams: StreamBudget,
     shutdown: CancellationToken,
 }
 
@@ -250,6 +261,87 @@ impl GrpcService {
     }
 }
 
+impl GrpcService {
+    /// Answers a stream's messages in order until it ends; returns how it ends.
+    ///
+    /// A stream that makes no progress in either direction for the idle
+    /// timeout is closed: waiting for the client's next message and waiting
+    /// for it to take a reply (its receive window closed: the reply queue
+    /// stays full) both count as no progress.
+    async fn pump(
+        &self,
+        mut inbound: Streaming<pb::StreamForwardKinematicsRequest>,
+        replies: &streams::Replies<pb::StreamForwardKinematicsResponse>,
+    ) -> End {
+        let idle = self.settings.stream_idle_timeout;
+        let idle_status = || {
+            Status::deadline_exceeded(format!(
+                "stream idle timeout: no message from the client and no reply taken for {idle:?}"
+            ))
+        };
+        loop {
+            let next = tokio::select! {
+                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                _ = replies.closed() => return End::Quiet, // client cancelled
+                r = tokio::time::timeout(idle, inbound.message()) => r,
+            };
+            let msg = match next {
+                Err(_) => return End::Closed(idle_status()),
+                Ok(Ok(Some(m))) => m,
+                Ok(Ok(None)) => return End::Quiet,
+                // Undecodable or oversized message (or the buffered bytes
+                // budget spent): report it and end (the transport state is unknown).
+                Ok(Err(status)) => return End::Status(oversize::remap_status(status)),
+            };
+            // A bug (panic) while answering ends the stream with INTERNAL, not
+            // with a clean end of stream the client would take for success.
+            let resp = match self.stream_reply(msg).await {
+                Ok(resp) => resp,
+                Err(e) => return End::Status(Status::from(e)),
+            };
+            // Waits while the client reads slowly (bounded buffering,
+            // end-to-end flow control), but not longer than the idle timeout.
+            let sent = tokio::select! {
+                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                r = tokio::time::timeout(idle, replies.send(resp)) => r,
+            };
+            match sent {
+                Ok(true) => {}
+                Ok(false) => return End::Quiet,
+                Err(_) => return End::Closed(idle_status()),
+            }
+        }
+    }
+}
+
+/// How a stream's task ended.
+enum End {
+    /// Cleanly, or the client went away: nothing to send.
+    Quiet,
+    /// With a status for the client.
+    Status(Status),
+    /// Closed by the server (idle timeout, shutdown) while the client may
+    /// not be taking its replies.
+    Closed(Status),
+}
+
+/// After the server closed a stream (idle timeout, shutdown): if its response is not done within
+/// [`streams::STUCK_GRACE`] (the HTTP/2 layer still waits for the client's
+/// window to send a reply or the final status), closes its connection, the
+/// only way to end that stream (see `streams`). A client that reads gets
+/// the final status at once and keeps its connection.
+async fn close_if_stuck(done: CancellationToken, connection: Option<streams::GrpcConnInfo>) {
+    let finished = tokio::time::timeout(streams::STUCK_GRACE, done.cancelled()).await;
+    if finished.is_err()
+        && let Some(c) = connection
+    {
+        tracing::info!(
+            "closing a gRPC connection: a closed stream on it stays blocked on the client's receive window"
+        );
+        c.close.cancel();
+    }
+}
+
 type FkStream = Pin<
     Box<dyn Stream<Item = Result<pb::StreamForwardKinematicsResponse, Status>> + Send + 'static>,
 >;
@@ -410,55 +502,36 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<Streaming<pb::StreamForwardKinematicsRequest>>,
     ) -> Result<Response<Self::StreamForwardKinematicsStream>, Status> {
-        let permit = self.admit()?;
-        let mut inbound = req.into_inner();
-        let (tx, rx) = mpsc::channel(STREAM_BUFFER);
+        let connection = req.extensions().get::<streams::GrpcConnInfo>().cloned();
+        let permit = self
+            .streams
+            .try_open(connection.as_ref().map(|c| &c.streams))
+            .map_err(|e| {
+                metrics::counter!("kinserve_grpc_rejected_total", "reason" => "streams")
+                    .increment(1);
+                Status::from(e)
+            })?;
+        let inbound = req.into_inner();
+        let (replies, outbound) = streams::channel();
         let this = self.clone();
-        let idle = self.settings.stream_idle_timeout;
-        let shutdown = self.shutdown.clone();
         tokio::spawn(async move {
-            let _permit = permit;
-            let _stream = StreamGuard::open(Protocol::Grpc);
-            loop {
-                let next = tokio::select! {
-                    _ = shutdown.cancelled() => {
-                        let _ = tx.send(Err(Status::unavailable("server shutting down"))).await;
-                        return;
-                    }
-                    _ = tx.closed() => return, // client cancelled
-                    r = tokio::time::timeout(idle, inbound.message()) => r,
-                };
-                let msg = match next {
-                    Err(_) => {
-                        let _ = tx
-                            .send(Err(Status::deadline_exceeded("stream idle timeout")))
-                            .await;
-                        return;
-                    }
-                    Ok(Ok(Some(m))) => m,
-                    Ok(Ok(None)) => return,
-                    Ok(Err(status)) => {
-                        // Undecodable or oversized message: report it and end (the transport state is unknown).
-                        let _ = tx.send(Err(oversize::remap_status(status))).await;
-                        return;
-                    }
-                };
-                // A bug (panic) while answering ends the stream with INTERNAL, not
-                // with a clean end of stream the client would take for success.
-                let resp = match this.stream_reply(msg).await {
-                    Ok(resp) => resp,
-                    Err(e) => {
-                        let _ = tx.send(Err(Status::from(e))).await;
-                        return;
-                    }
-                };
-                // Waits while the client reads slowly: bounded buffering, end-to-end flow control.
-                if tx.send(Ok(resp)).await.is_err() {
-                    return;
+            // The stream's budget slot, never a request permit: open streams
+            // do not take from the requests in flight.
+            let stream = StreamGuard::open(Protocol::Grpc);
+            let end = this.pump(inbound, &replies).await;
+            drop((permit, stream));
+            match end {
+                End::Quiet => {}
+                End::Status(status) => {
+                    replies.end(status);
+                }
+                End::Closed(status) => {
+                    let done = replies.end(status);
+                    close_if_stuck(done, connection).await;
                 }
             }
         });
-        Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+        Ok(Response::new(Box::pin(outbound)))
     }
 
     async fn jacobian(
@@ -527,6 +600,7 @@ pub async fn serve(
     service: Arc<Service>,
     settings: GrpcSettings,
     permits: Arc<Semaphore>,
+    streams: StreamBudget,
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     let (health, health_service) = tonic_health::server::health_reporter();
@@ -557,10 +631,13 @@ pub async fn serve(
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
     let access_log = settings.access_log;
+    let buffered =
+        buffered::BufferedBytesLayer::new(ByteBudget::new(settings.max_buffered_request_bytes));
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
         settings: Arc::new(settings),
         permits,
+        streams,
         shutdown: shutdown.clone(),
     })
     .max_decoding_message_size(max_message)
@@ -568,12 +645,9 @@ pub async fn serve(
     // Oversized messages: RESOURCE_EXHAUSTED, not tonic's OUT_OF_RANGE; undecodable
     // ones INVALID_ARGUMENT, not INTERNAL; unknown methods named.
     let kin = oversize::WireErrorStatuses(kin);
-    // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to listeners it binds).
-    let incoming = TcpListenerStream::new(listener).map(|s| {
-        s.inspect(|tcp| {
-            let _ = tcp.set_nodelay(true);
-        })
-    });
+    // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to
+    // listeners it binds) and their own count of open streams.
+    let incoming = TcpListenerStream::new(listener).map(|s| s.map(streams::GrpcConn::new));
     let health_on_stop = health.clone();
     let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(
         access_log,
@@ -589,10 +663,12 @@ pub async fn serve(
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,
         ))
+        .layer(buffered)
         .timeout(request_timeout)
         .tcp_nodelay(true)
         .initial_stream_window_size(STREAM_WINDOW)
         .initial_connection_window_size(CONNECTION_WINDOW)
+        .max_concurrent_streams(MAX_CALLS_PER_CONNECTION)
         .http2_keepalive_interval(Some(std::time::Duration::from_secs(30)))
         .add_service(kin)
         .add_service(health_service)

@@ -71,7 +71,8 @@ pub struct RestSettings {
     pub max_batch_body_bytes: usize,
     /// Longest time a request may take.
     pub request_timeout: Duration,
-    /// A WebSocket with no message from the client for this long is closed.
+    /// A WebSocket that makes no progress in either direction (no data
+    /// message from the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
     pub cors_origins: Vec<String>,
@@ -91,6 +92,8 @@ pub struct AppInner {
     pub metrics: PrometheusHandle,
     /// Admission control: one permit per request in flight.
     pub permits: Arc<Semaphore>,
+    /// Open WebSockets (shared with gRPC streams); a WebSocket holds a slot, not a request permit.
+    pub streams: crate::api::budget::StreamBudget,
 }
 
 struct SecurityAddon;
@@ -417,7 +420,11 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             "/v1/robots/{name}/fk/batch",
             axum::routing::post(handlers::fk_batch),
         )
-        .route("/v1/robots/{name}/fk/stream", get(ws::stream))
+        // GET: the HTTP/1.1 upgrade; CONNECT: WebSockets over HTTP/2 (RFC 8441).
+        .route(
+            "/v1/robots/{name}/fk/stream",
+            get(ws::stream).connect(ws::stream),
+        )
         .route(
             "/v1/robots/{name}/jacobian",
             axum::routing::post(velocity::jacobian),

@@ -1,23 +1,43 @@
 //! `GET /v1/robots/{name}/fk/stream`: FK, Jacobians and IK over a WebSocket,
 //! one reply per message, in order.
 
+use std::time::Duration;
+
+use axum::Extension;
 use axum::extract::State;
 use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use futures_util::{FutureExt, SinkExt};
+use tokio::time::Instant;
 
 use super::AppState;
 use super::dto::{WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
+use crate::api::budget::{ConnectionStreams, StreamPermit};
 use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
 use crate::error::Error;
 use crate::telemetry::{Protocol, StreamGuard};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
 const GOING_AWAY: u16 = 1001;
+
+/// Close code 1009 "message too big" (a message over `--max-body-bytes`).
+const TOO_BIG: u16 = 1009;
+
+/// Longest a close frame may wait to go out (the client may not be reading).
+const CLOSE_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Read buffer of a socket, allocated when it opens (tungstenite's default,
+/// 128 KiB, made 2,000 idle sockets cost 250 MB). Bigger frames still arrive
+/// whole: the buffer grows for them and they are read in pieces this size.
+const READ_BUFFER: usize = 8 << 10;
+
+/// Replies are written out once this much is queued (or at the end of a
+/// batch of replies, whichever comes first).
+const WRITE_BUFFER: usize = 8 << 10;
 
 /// Opens the FK stream for a robot. Each text message
 /// `{"id", "joints", "angle_unit"?, "frames"?, "check_limits"?, "pose_format"?, "jacobian"?, "frame"?}`
@@ -27,6 +47,13 @@ const GOING_AWAY: u16 = 1001;
 /// `{"id", "ik": {IK request}}` gets `{"id", "pose", "joints", "converged",
 /// "position_error", "orientation_error", "iterations"}` or an `error` (an
 /// unreached target is `ik-not-converged` with the best attempt).
+///
+/// A socket counts against the open-streams budget (`--max-streams`, and
+/// `--max-streams-per-connection` on HTTP/2); past it the upgrade is refused
+/// with 503. A message over `--max-body-bytes` (whole or being assembled
+/// from fragments) closes the socket with 1009; a socket with no data
+/// message from the client and no reply taken for `--stream-idle-timeout`
+/// closes with 1001 (pings do not count).
 #[utoipa::path(get, path = "/v1/robots/{name}/fk/stream", tag = "fk",
     params(("name" = String, Path, description = "Robot name")),
     responses((status = 101, description = "WebSocket upgrade; messages are WsRequest (FK, with the Jacobian on request, or IK), replies WsReply"),
@@ -34,11 +61,12 @@ const GOING_AWAY: u16 = 1001;
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 403, description = "The page's origin is not among --cors-origin (only when that is set)", body = Problem, content_type = "application/problem+json"),
         (status = 426, description = "The connection cannot be upgraded", body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+        (status = 503, description = "Overloaded (requests in flight or open streams), or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     headers: axum::http::HeaderMap,
+    connection: Option<Extension<ConnectionStreams>>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
     super::check_origin(&headers, &state.settings.cors_origins, false)?;
@@ -63,73 +91,152 @@ pub async fn stream(
             .into_response());
         }
     };
+    // The stream's budget slot, taken before upgrading: past the budget the
+    // client gets 503 + Retry-After, not a socket that closes at once.
+    let permit = state
+        .streams
+        .try_open(connection.as_ref().map(|Extension(c)| c))
+        .inspect_err(|_| {
+            metrics::counter!("kinserve_http_rejected_total", "reason" => "streams").increment(1);
+        })?;
     let max = state.settings.max_body_bytes;
     Ok(ws
+        .read_buffer_size(READ_BUFFER)
+        .write_buffer_size(WRITE_BUFFER)
+        // A reply echoes the message's id (up to `max`) beside the pose and
+        // frames: room for two of them; the buffer only grows when used.
+        .max_write_buffer_size(WRITE_BUFFER + 2 * max + (1 << 20))
         .max_message_size(max)
         .max_frame_size(max)
-        .on_upgrade(move |socket| run(socket, state, name)))
+        .on_upgrade(move |socket| run(socket, state, name, permit)))
 }
 
-async fn close(socket: &mut WebSocket, reason: &'static str) {
+/// Sends a close frame, if the client takes it within [`CLOSE_TIMEOUT`].
+async fn close(socket: &mut WebSocket, code: u16, reason: &'static str) {
     let frame = CloseFrame {
-        code: GOING_AWAY,
+        code,
         reason: reason.into(),
     };
-    let _ = socket.send(Message::Close(Some(frame))).await;
+    let _ = tokio::time::timeout(CLOSE_TIMEOUT, socket.send(Message::Close(Some(frame)))).await;
 }
 
-async fn run(mut socket: WebSocket, state: AppState, name: String) {
+/// Ends a socket whose read failed: an oversized message (whole or being
+/// assembled) gets close 1009; other errors (invalid frames, I/O) just end it.
+async fn read_failed(socket: &mut WebSocket, e: axum::Error) {
+    let too_big = e
+        .into_inner()
+        .downcast::<tungstenite::Error>()
+        .is_ok_and(|e| matches!(*e, tungstenite::Error::Capacity(_)));
+    if too_big {
+        close(socket, TOO_BIG, "message too big").await;
+    }
+}
+
+/// What a received message asks of the loop.
+enum Step {
+    /// A reply to send (the message was data: progress).
+    Reply(String),
+    /// Nothing to send (a ping or pong: not progress).
+    Nothing,
+    /// The client closed.
+    End,
+}
+
+async fn step(state: &AppState, name: &str, msg: Message) -> Step {
+    match msg {
+        Message::Text(t) => Step::Reply(answer(state, name, t.as_bytes()).await),
+        Message::Binary(_) => Step::Reply(error_reply(
+            &serde_json::Value::Null,
+            &Error::UnsupportedMediaType {
+                detail: "binary messages are not supported; send JSON text".into(),
+            },
+        )),
+        Message::Ping(_) | Message::Pong(_) => Step::Nothing,
+        Message::Close(_) => Step::End,
+    }
+}
+
+async fn run(mut socket: WebSocket, state: AppState, name: String, permit: StreamPermit) {
+    let _permit = permit;
     let _stream = StreamGuard::open(Protocol::WebSocket);
     let shutdown = state.shutdown.clone();
     let idle = state.settings.stream_idle_timeout;
+    // Progress in either direction (a data message from the client, replies
+    // taken by it) moves the deadline; pings and pongs do not.
+    let mut deadline = Instant::now() + idle;
     loop {
         let first = tokio::select! {
             _ = shutdown.cancelled() => {
-                close(&mut socket, "server shutting down").await;
+                close(&mut socket, GOING_AWAY, "server shutting down").await;
                 return;
             }
-            r = tokio::time::timeout(idle, socket.recv()) => match r {
-                Err(_) => {
-                    close(&mut socket, "idle timeout").await;
-                    return;
-                }
-                Ok(None) | Ok(Some(Err(_))) => return,
-                Ok(Some(Ok(m))) => m,
+            _ = tokio::time::sleep_until(deadline) => {
+                close(&mut socket, GOING_AWAY, "idle timeout").await;
+                return;
+            }
+            r = socket.recv() => match r {
+                None => return,
+                Some(Err(e)) => return read_failed(&mut socket, e).await,
+                Some(Ok(m)) => m,
             }
         };
-        // Answer this message and every one already received, then flush once:
-        // a pipelining client gets its replies in one write instead of one each.
-        let mut next = Some(first);
-        while let Some(msg) = next.take() {
-            let reply = match msg {
-                Message::Text(t) => Some(answer(&state, &name, t.as_bytes()).await),
-                Message::Binary(_) => Some(error_reply(
-                    &serde_json::Value::Null,
-                    &Error::UnsupportedMediaType {
-                        detail: "binary messages are not supported; send JSON text".into(),
-                    },
-                )),
-                Message::Ping(_) | Message::Pong(_) => None,
-                Message::Close(_) => return,
-            };
-            if let Some(reply) = reply
-                && socket.feed(Message::Text(reply.into())).await.is_err()
-            {
-                return;
-            }
-            // `recv` is cancel-safe: a message not ready now stays queued.
-            next = match socket.recv().now_or_never() {
-                Some(Some(Ok(m))) => Some(m),
-                Some(None) | Some(Some(Err(_))) => {
-                    let _ = socket.flush().await;
-                    return;
+        // Writing the answers must finish within the idle timeout from the
+        // message (a client that does not read makes no progress); after a
+        // ping, within what is left of it.
+        let send_by = match first {
+            Message::Ping(_) | Message::Pong(_) => deadline,
+            _ => Instant::now() + idle,
+        };
+        match answer_pending(&mut socket, &state, &name, first, send_by).await {
+            Some(true) => deadline = Instant::now() + idle,
+            Some(false) => {}
+            None => return,
+        }
+    }
+}
+
+/// Answers `first` and every message already received, then flushes once
+/// (a pipelining client gets its replies in one write instead of one each).
+/// Writing must finish by `send_by`. `Some(true)` when replies went out,
+/// `Some(false)` when there was nothing to answer (pings), `None` when the
+/// socket is done.
+async fn answer_pending(
+    socket: &mut WebSocket,
+    state: &AppState,
+    name: &str,
+    first: Message,
+    send_by: Instant,
+) -> Option<bool> {
+    let mut replied = false;
+    let mut next = Some(first);
+    while let Some(msg) = next.take() {
+        match step(state, name, msg).await {
+            Step::Reply(reply) => {
+                replied = true;
+                let fed =
+                    tokio::time::timeout_at(send_by, socket.feed(Message::Text(reply.into())));
+                if !matches!(fed.await, Ok(Ok(()))) {
+                    return None;
                 }
-                None => None,
-            };
+            }
+            Step::Nothing => {}
+            Step::End => return None,
         }
-        if socket.flush().await.is_err() {
-            return;
-        }
+        // `recv` is cancel-safe: a message not ready now stays queued.
+        next = match socket.recv().now_or_never() {
+            Some(Some(Ok(m))) => Some(m),
+            Some(None) => None,
+            Some(Some(Err(e))) => {
+                let _ = tokio::time::timeout_at(send_by, socket.flush()).await;
+                read_failed(socket, e).await;
+                return None;
+            }
+            None => None,
+        };
+    }
+    match tokio::time::timeout_at(send_by, socket.flush()).await {
+        Ok(Ok(())) => Some(replied),
+        _ => None,
     }
 }
 

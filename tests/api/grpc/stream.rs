@@ -231,13 +231,32 @@ async fn a_stream_outlives_the_request_timeout() {
 /// bound, not a timing assertion). Every refusal must be RESOURCE_EXHAUSTED.
 async fn eventually_admitted(c: &mut KinematicsServiceClient<Channel>) -> bool {
     for _ in 0..1000 {
-        match c.list_robots(pb::ListRobotsRequest::default()).await {
+        match c
+            .stream_forward_kinematics(tokio_stream::iter(Vec::new()))
+            .await
+        {
             Ok(_) => return true,
             Err(e) => assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}"),
         }
         tokio::time::sleep(std::time::Duration::from_millis(10)).await;
     }
     false
+}
+
+/// Asserts a new stream is refused (the budget is full) while unary calls
+/// are served (streams do not take request permits).
+async fn stream_refused_unary_served(c: &mut KinematicsServiceClient<Channel>) {
+    let err = c
+        .stream_forward_kinematics(tokio_stream::iter(Vec::new()))
+        .await
+        .unwrap_err();
+    assert_eq!(err.code(), Code::ResourceExhausted, "{err:?}");
+    c.list_robots(pb::ListRobotsRequest::default())
+        .await
+        .expect("unary calls do not wait for streams");
+    c.forward_kinematics(fk_request("puma560", &[0.0; 6], None))
+        .await
+        .expect("unary calls do not wait for streams");
 }
 
 /// A TCP proxy to `target` for one connection; aborting the returned task cuts
@@ -255,27 +274,22 @@ async fn one_shot_proxy(target: &str) -> (String, tokio::task::JoinHandle<()>) {
 }
 
 #[tokio::test]
-async fn over_the_concurrency_limit_calls_are_resource_exhausted_and_a_finished_stream_frees_its_slot()
+async fn over_the_stream_budget_streams_are_resource_exhausted_and_a_finished_stream_frees_its_slot()
  {
-    // One request in flight at a time: the open stream holds the only permit.
-    let app = spawn_app_with(|c| c.max_concurrent_requests = 1).await;
+    // One stream at a time, one request in flight: the open stream holds the
+    // only stream slot but no request permit.
+    let app = spawn_app_with(|c| {
+        c.max_streams = 1;
+        c.max_concurrent_requests = 1;
+    })
+    .await;
     let mut c = app.grpc_client().await;
     let (tx, mut rx) = open_stream(&mut c, 4).await;
     tx.send(stream_request(1, "puma560", &[0.0; 6], None))
         .await
         .unwrap();
     assert_eq!(rx.message().await.unwrap().unwrap().id, 1);
-
-    let err = c
-        .list_robots(pb::ListRobotsRequest::default())
-        .await
-        .unwrap_err();
-    assert_eq!(err.code(), Code::ResourceExhausted, "{err:?}");
-    let err = c
-        .forward_kinematics(fk_request("puma560", &[0.0; 6], None))
-        .await
-        .unwrap_err();
-    assert_eq!(err.code(), Code::ResourceExhausted, "{err:?}");
+    stream_refused_unary_served(&mut c).await;
 
     // The client drops both halves of the call (tonic: END_STREAM, then the
     // stream is reset because the response is no longer wanted).
@@ -283,14 +297,14 @@ async fn over_the_concurrency_limit_calls_are_resource_exhausted_and_a_finished_
     drop(tx);
     assert!(
         eventually_admitted(&mut c).await,
-        "the dropped stream still holds its permit"
+        "the dropped stream still holds its stream slot"
     );
 }
 
 #[tokio::test]
 async fn cancelling_a_stream_blocked_on_a_slow_reader_releases_the_server_side_work() {
     // The server is blocked sending (the client never reads) when the client goes.
-    let app = spawn_app_with(|c| c.max_concurrent_requests = 1).await;
+    let app = spawn_app_with(|c| c.max_streams = 1).await;
     let mut c = app.grpc_client().await;
     let (proxy, cut) = one_shot_proxy(&app.grpc).await;
     let mut via_proxy = KinematicsServiceClient::connect(proxy).await.unwrap();
@@ -306,7 +320,7 @@ async fn cancelling_a_stream_blocked_on_a_slow_reader_releases_the_server_side_w
     let _ = cut.await;
     assert!(
         eventually_admitted(&mut c).await,
-        "the abandoned stream still holds its permit"
+        "the abandoned stream still holds its stream slot"
     );
     drop((tx, rx));
 }
@@ -314,7 +328,7 @@ async fn cancelling_a_stream_blocked_on_a_slow_reader_releases_the_server_side_w
 #[tokio::test]
 async fn a_client_that_vanishes_mid_stream_releases_the_server_side_work() {
     // The server is waiting for the next request when the connection dies.
-    let app = spawn_app_with(|c| c.max_concurrent_requests = 1).await;
+    let app = spawn_app_with(|c| c.max_streams = 1).await;
     let mut c = app.grpc_client().await;
     let (proxy, cut) = one_shot_proxy(&app.grpc).await;
     let mut via_proxy = KinematicsServiceClient::connect(proxy).await.unwrap();
@@ -323,18 +337,12 @@ async fn a_client_that_vanishes_mid_stream_releases_the_server_side_work() {
         .await
         .unwrap();
     assert_eq!(rx.message().await.unwrap().unwrap().id, 1);
-    assert_eq!(
-        c.list_robots(pb::ListRobotsRequest::default())
-            .await
-            .unwrap_err()
-            .code(),
-        Code::ResourceExhausted
-    );
+    stream_refused_unary_served(&mut c).await;
     cut.abort();
     let _ = cut.await;
     assert!(
         eventually_admitted(&mut c).await,
-        "the abandoned stream still holds its permit"
+        "the abandoned stream still holds its stream slot"
     );
     drop((tx, rx));
 }

@@ -70,10 +70,13 @@ pub struct Checker {
 }
 
 impl Checker {
+    /// Starts the client; returns once its WebSocket is open (so that it
+    /// holds its stream slot before an attack starts).
     pub async fn start(http: &str, grpc: &str, ws: &str) -> Checker {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let (http, grpc, ws) = (http.to_owned(), grpc.to_owned(), ws.to_owned());
+        let (opened, ws_open) = tokio::sync::oneshot::channel::<()>();
         let task = tokio::spawn(async move {
             let want = reference_matrices();
             let client = reqwest::Client::new();
@@ -82,6 +85,7 @@ impl Checker {
             let (mut sock, _) = tokio_tungstenite::connect_async(url.as_str())
                 .await
                 .unwrap();
+            let _ = opened.send(());
             let mut r = CheckReport::default();
             let mut i = 0usize;
             // At least one full round, then until told to stop.
@@ -150,6 +154,7 @@ impl Checker {
             }
             r
         });
+        let _ = ws_open.await;
         Checker { stop, task }
     }
 

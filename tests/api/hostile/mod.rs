@@ -13,4 +13,5 @@ mod auth;
 mod corpus_grpc;
 mod corpus_http;
 mod overload;
+mod streams;
 mod ws;

@@ -198,6 +198,7 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
         shutdown: tokio_util::sync::CancellationToken::new(),
         metrics: kinserve::telemetry::metrics_handle(),
         permits: Arc::new(tokio::sync::Semaphore::new(1)),
+        streams: config.stream_budget(),
     });
     let boom = axum::Router::new()
         .route(

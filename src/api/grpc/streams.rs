@@ -1,0 +1,202 @@
+//! The plumbing of `StreamForwardKinematics`: which connection a call came
+//! on (for the per-connection stream budget, and to close it), and the
+//! outbound half of a stream, which can end with a status even while the
+//! client does not read.
+//!
+//! Why a connection may have to be closed: once the HTTP/2 layer (hyper)
+//! holds a reply for a stream whose client keeps its receive window closed,
+//! it waits for window and polls nothing else of that stream, so nothing the
+//! application does can end (reset) that one stream. A stream closed for
+//! idleness while blocked that way has [`STUCK_GRACE`] to go; if its
+//! response is still not done then, its connection is closed, which ends
+//! every stream on it and frees what they hold.
+
+use std::future::Future as _;
+use std::pin::Pin;
+use std::task::{Context, Poll};
+
+use std::time::Duration;
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::net::TcpStream;
+
+use tokio::sync::{mpsc, oneshot};
+use tokio_stream::Stream;
+use tokio_util::sync::{CancellationToken, DropGuard, WaitForCancellationFutureOwned};
+use tonic::Status;
+use tonic::transport::server::Connected;
+
+use crate::api::budget::ConnectionStreams;
+
+/// Replies of one stream queued for the client, beyond the one its task is
+/// holding: a client that does not read holds this little.
+pub const REPLY_BUFFER: usize = 1;
+
+/// How long a stream closed for idleness while its client did not read may
+/// take to finish before its connection is closed.
+pub const STUCK_GRACE: Duration = Duration::from_secs(1);
+
+/// What handlers learn about the connection of a call (request extensions).
+#[derive(Clone, Debug, Default)]
+pub struct GrpcConnInfo {
+    /// The streams open on it.
+    pub streams: ConnectionStreams,
+    /// Cancelling it closes the connection.
+    pub close: CancellationToken,
+}
+
+/// An accepted gRPC connection: the TCP stream, the streams open on it, and
+/// a token that closes it (reads and writes fail once it is cancelled).
+pub struct GrpcConn {
+    tcp: TcpStream,
+    info: GrpcConnInfo,
+    closed: Pin<Box<WaitForCancellationFutureOwned>>,
+}
+
+impl GrpcConn {
+    /// A newly accepted connection (TCP_NODELAY set).
+    pub fn new(tcp: TcpStream) -> GrpcConn {
+        let _ = tcp.set_nodelay(true);
+        let info = GrpcConnInfo::default();
+        let closed = Box::pin(info.close.clone().cancelled_owned());
+        GrpcConn { tcp, info, closed }
+    }
+
+    /// `Err` once the connection is to be closed.
+    fn check(&mut self, cx: &mut Context<'_>) -> std::io::Result<()> {
+        match self.closed.as_mut().poll(cx) {
+            Poll::Ready(()) => Err(std::io::Error::new(
+                std::io::ErrorKind::ConnectionAborted,
+                "closed: a stream on it stayed blocked on the client's receive window",
+            )),
+            Poll::Pending => Ok(()),
+        }
+    }
+}
+
+impl Connected for GrpcConn {
+    type ConnectInfo = GrpcConnInfo;
+    fn connect_info(&self) -> GrpcConnInfo {
+        self.info.clone()
+    }
+}
+
+impl AsyncRead for GrpcConn {
+    fn poll_read(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        let this = self.get_mut();
+        this.check(cx)?;
+        Pin::new(&mut this.tcp).poll_read(cx, buf)
+    }
+}
+
+impl AsyncWrite for GrpcConn {
+    fn poll_write(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<std::io::Result<usize>> {
+        let this = self.get_mut();
+        this.check(cx)?;
+        Pin::new(&mut this.tcp).poll_write(cx, buf)
+    }
+
+    fn poll_write_vectored(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bufs: &[std::io::IoSlice<'_>],
+    ) -> Poll<std::io::Result<usize>> {
+        Pin::new(&mut self.get_mut().tcp).poll_write_vectored(cx, bufs)
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.tcp.is_write_vectored()
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.get_mut().tcp).poll_flush(cx)
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.get_mut().tcp).poll_shutdown(cx)
+    }
+}
+
+/// The sending half of a stream, used by its task.
+pub struct Replies<T> {
+    tx: mpsc::Sender<Result<T, Status>>,
+    last: Option<oneshot::Sender<Status>>,
+    done: CancellationToken,
+}
+
+/// The outbound stream tonic sends: the replies, then the final status (if
+/// the task ended with one) once every queued reply went out.
+pub struct Outbound<T> {
+    rx: mpsc::Receiver<Result<T, Status>>,
+    last: Option<oneshot::Receiver<Status>>,
+    /// Cancels [`Replies::done`] when the HTTP layer drops the response.
+    _done: DropGuard,
+}
+
+/// A stream's two halves, with [`REPLY_BUFFER`] replies of room.
+pub fn channel<T>() -> (Replies<T>, Outbound<T>) {
+    let (tx, rx) = mpsc::channel(REPLY_BUFFER);
+    let (last_tx, last_rx) = oneshot::channel();
+    let done = CancellationToken::new();
+    (
+        Replies {
+            tx,
+            last: Some(last_tx),
+            done: done.clone(),
+        },
+        Outbound {
+            rx,
+            last: Some(last_rx),
+            _done: done.drop_guard(),
+        },
+    )
+}
+
+impl<T> Replies<T> {
+    /// Queues a reply; waits while the queue is full (the client reads
+    /// slowly). `false` once the client is gone.
+    pub async fn send(&self, reply: T) -> bool {
+        self.tx.send(Ok(reply)).await.is_ok()
+    }
+
+    /// Resolves when the client has gone (cancelled the call).
+    pub async fn closed(&self) {
+        self.tx.closed().await
+    }
+
+    /// Ends the stream with `status` after the queued replies, without
+    /// waiting for the client to read them; returns a token cancelled once
+    /// the response is done (sent, or the stream reset).
+    pub fn end(mut self, status: Status) -> CancellationToken {
+        if let Some(last) = self.last.take() {
+            let _ = last.send(status);
+        }
+        self.done.clone()
+    }
+}
+
+impl<T> Stream for Outbound<T> {
+    type Item = Result<T, Status>;
+
+    fn poll_next(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
+        let this = self.get_mut();
+        match this.rx.poll_recv(cx) {
+            Poll::Ready(None) => {}
+            other => return other,
+        }
+        // The task is done: its final status, if it left one.
+        let Some(last) = this.last.as_mut() else {
+            return Poll::Ready(None);
+        };
+        let status = std::task::ready!(Pin::new(last).poll(cx)).ok();
+        this.last = None;
+        Poll::Ready(status.map(Err))
+    }
+}
