@@ -320,13 +320,43 @@ pub struct ServeConfig {
     /// Longest time a request may take.
     #[arg(long, env = "KINSERVE_REQUEST_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
     pub request_timeout: Duration,
-    /// Longest time a client may take to send its request headers (HTTP/1).
+    /// Longest time a client may take to send a request head: every request of
+    /// an HTTP/1 connection (the first one and each kept-alive one); on HTTP/2,
+    /// a connection with no request under way for this long is closed (GOAWAY).
     #[arg(long, env = "KINSERVE_HEADER_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub header_timeout: Duration,
+    /// Longest wait for the next piece of a request body; past it the request
+    /// is answered 408 and the connection closed. (The whole body must also
+    /// arrive within the request timeout.) Bodies are read before a request
+    /// permit is taken.
+    #[arg(long, env = "KINSERVE_BODY_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
+    pub body_timeout: Duration,
+    /// A connection whose client takes none of the answer for this long is closed.
+    #[arg(long, env = "KINSERVE_WRITE_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub write_timeout: Duration,
+    /// Longest lingering close: after answering, a closing connection reads and
+    /// discards what the client still sends for at most this long (at most 5 s
+    /// between two reads), so that the client sees the answer (413, 401…).
+    #[arg(long, env = "KINSERVE_LINGER_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub linger_timeout: Duration,
+    /// Most bytes of REST request bodies buffered at once; a body that does not
+    /// fit is answered 503 (Retry-After).
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_REQUEST_BYTES", default_value_t = 64 << 20)]
+    pub max_buffered_request_bytes: usize,
+    /// Most bytes of REST answers (of 64 KiB or more each) waiting to be sent
+    /// at once; an answer that does not fit is replaced by 503 (Retry-After).
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20)]
+    pub max_buffered_response_bytes: usize,
     /// A WebSocket or gRPC stream with no message from the client for this long is closed.
     #[arg(long, env = "KINSERVE_STREAM_IDLE_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
     pub stream_idle_timeout: Duration,
-    /// How long shutdown waits for in-flight requests before exiting anyway.
+    /// On shutdown, how long `/readyz` (and gRPC health) answer not-ready while
+    /// requests are still served as usual, so that load balancers stop sending
+    /// new ones before the listeners close.
+    #[arg(long, env = "KINSERVE_SHUTDOWN_GRACE", default_value = "5s", value_parser = parse_duration)]
+    pub shutdown_grace: Duration,
+    /// How long shutdown waits for in-flight requests (after the grace period
+    /// and the listeners closed) before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
     /// Longest time one IK solve may take; past it the best attempt is
@@ -358,7 +388,13 @@ impl std::fmt::Debug for ServeConfig {
             max_concurrent_requests,
             request_timeout,
             header_timeout,
+            body_timeout,
+            write_timeout,
+            linger_timeout,
+            max_buffered_request_bytes,
+            max_buffered_response_bytes,
             stream_idle_timeout,
+            shutdown_grace,
             shutdown_timeout,
             ik_time_limit,
         } = self;
@@ -383,7 +419,13 @@ impl std::fmt::Debug for ServeConfig {
             .field("max_concurrent_requests", max_concurrent_requests)
             .field("request_timeout", request_timeout)
             .field("header_timeout", header_timeout)
+            .field("body_timeout", body_timeout)
+            .field("write_timeout", write_timeout)
+            .field("linger_timeout", linger_timeout)
+            .field("max_buffered_request_bytes", max_buffered_request_bytes)
+            .field("max_buffered_response_bytes", max_buffered_response_bytes)
             .field("stream_idle_timeout", stream_idle_timeout)
+            .field("shutdown_grace", shutdown_grace)
             .field("shutdown_timeout", shutdown_timeout)
             .field("ik_time_limit", ik_time_limit)
             .finish()
@@ -428,7 +470,14 @@ impl ServeConfig {
             max_concurrent_requests: 1024,
             request_timeout: Duration::from_secs(30),
             header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(10),
+            write_timeout: Duration::from_secs(30),
+            linger_timeout: Duration::from_secs(30),
+            max_buffered_request_bytes: 64 << 20,
+            max_buffered_response_bytes: 64 << 20,
             stream_idle_timeout: Duration::from_secs(300),
+            // No grace by default in tests: stopping a test server is instant.
+            shutdown_grace: Duration::ZERO,
             shutdown_timeout: Duration::from_secs(10),
             ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
@@ -440,6 +489,9 @@ impl ServeConfig {
             max_body_bytes: self.max_body_bytes,
             max_batch_body_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
+            body_timeout: self.body_timeout,
+            max_buffered_request_bytes: self.max_buffered_request_bytes,
+            max_buffered_response_bytes: self.max_buffered_response_bytes,
             stream_idle_timeout: self.stream_idle_timeout,
             cors_origins: self.cors_origins.clone(),
             access_log: self.access_log,

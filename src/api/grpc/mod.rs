@@ -478,14 +478,25 @@ fn panic_response(
     Status::from(super::panic_to_error(err.as_ref(), "gRPC handler")).into_http()
 }
 
-/// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` is cancelled.
+/// When the gRPC server reports NOT_SERVING and when it stops.
+#[derive(Clone, Debug)]
+pub struct Lifecycle {
+    /// Cancelled when the drain starts: health turns NOT_SERVING, calls are still served.
+    pub draining: CancellationToken,
+    /// Cancelled when the listener closes (streams end, calls drain).
+    pub stop: CancellationToken,
+}
+
+/// Serves gRPC (kinematics, health, reflection) on `listener` until
+/// `lifecycle.stop` is cancelled; health is NOT_SERVING from `lifecycle.draining` on.
 pub async fn serve(
     listener: TcpListener,
     service: Arc<Service>,
     settings: GrpcSettings,
     permits: Arc<Semaphore>,
-    shutdown: CancellationToken,
+    lifecycle: Lifecycle,
 ) -> std::io::Result<()> {
+    let shutdown = lifecycle.stop;
     let (health, health_service) = tonic_health::server::health_reporter();
     health
         .set_serving::<KinematicsServiceServer<GrpcService>>()
@@ -556,13 +567,17 @@ pub async fn serve(
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .serve_with_incoming_shutdown(incoming, async move {
-            shutdown.cancelled().await;
+            tokio::select! {
+                _ = lifecycle.draining.cancelled() => {}
+                _ = shutdown.cancelled() => {}
+            }
             health_on_stop
                 .set_not_serving::<KinematicsServiceServer<GrpcService>>()
                 .await;
             health_on_stop
                 .set_service_status("", tonic_health::ServingStatus::NotServing)
                 .await;
+            shutdown.cancelled().await;
         })
         .await
         .map_err(std::io::Error::other)

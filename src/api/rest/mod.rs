@@ -1,5 +1,8 @@
 //! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
 
+pub mod body_budget;
+mod buffered;
+pub mod conn;
 mod dto;
 mod export;
 mod extract;
@@ -7,6 +10,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod strict;
 mod velocity;
 mod ws;
 
@@ -36,6 +40,8 @@ pub use dto::{
     WsRequest,
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
+pub use body_budget::{ByteBudget, Reservation, RestBudgets};
+pub use conn::ConnActivity;
 pub use problem::{ApiError, Problem, ProblemField};
 
 use openapi::Complete;
@@ -43,21 +49,36 @@ use openapi::Complete;
 use crate::error::Error;
 use crate::service::Service;
 
+
 /// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
-pub struct AppState(Arc<AppInner>);
+pub struct AppState(Arc<Shared>);
+
+struct Shared {
+    inner: AppInner,
+    budgets: RestBudgets,
+}
 
 impl AppState {
-    /// Wraps the shared parts.
+    /// Wraps the shared parts; the byte budgets are sized by its settings.
     pub fn new(inner: AppInner) -> AppState {
-        AppState(Arc::new(inner))
+        let budgets = RestBudgets {
+            request: ByteBudget::new(inner.settings.max_buffered_request_bytes),
+            response: ByteBudget::new(inner.settings.max_buffered_response_bytes),
+        };
+        AppState(Arc::new(Shared { inner, budgets }))
+    }
+
+    /// The request and response byte budgets.
+    pub fn budgets(&self) -> &RestBudgets {
+        &self.0.budgets
     }
 }
 
 impl std::ops::Deref for AppState {
     type Target = AppInner;
     fn deref(&self) -> &AppInner {
-        &self.0
+        &self.0.inner
     }
 }
 
@@ -71,6 +92,12 @@ pub struct RestSettings {
     pub max_batch_body_bytes: usize,
     /// Longest time a request may take.
     pub request_timeout: Duration,
+    /// Longest wait for the next piece of a request body (408 past it).
+    pub body_timeout: Duration,
+    /// Most bytes of request bodies buffered at once (503 past it).
+    pub max_buffered_request_bytes: usize,
+    /// Most bytes of (large) answers waiting to be written at once (503 past it).
+    pub max_buffered_response_bytes: usize,
     /// A WebSocket with no message from the client for this long is closed.
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
@@ -227,9 +254,17 @@ pub(crate) fn check_origin(
     })
 }
 
-/// Admission control and request timeout: past the concurrency limit a request
-/// is answered 503 at once instead of queueing; a request over the time limit gets 503.
+/// Admission control and request timeout. The request body is read first,
+/// without a permit (see [`buffered::read_body`]); then, past the concurrency
+/// limit, a request is answered 503 at once instead of queueing; a request
+/// over the time limit gets 503. A large answer is counted against the
+/// response byte budget (see [`buffered::hold_response`]).
 async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
+    let (req, _body_bytes) = match buffered::read_body(req, &state).await {
+        Ok(read) => read,
+        Err(refusal) => return refusal,
+    };
     let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
         return refuse_unread(
@@ -237,13 +272,14 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
             ApiError(Error::Overloaded).into_response(),
         );
     };
-    match tokio::time::timeout(state.settings.request_timeout, next.run(req)).await {
+    let resp = match tokio::time::timeout(state.settings.request_timeout, next.run(req)).await {
         Ok(resp) => resp,
         Err(_) => ApiError(Error::Unavailable {
             detail: "request timed out".into(),
         })
         .into_response(),
-    }
+    };
+    buffered::hold_response(resp, &state, conn)
 }
 
 /// The route label of a matched path, without allocating for the known routes.
@@ -299,12 +335,14 @@ fn status_label(code: u16) -> SharedString {
         (401, "401"),
         (404, "404"),
         (405, "405"),
+        (408, "408"),
         (409, "409"),
         (412, "412"),
         (413, "413"),
         (415, "415"),
         (422, "422"),
         (500, "500"),
+        (501, "501"),
         (503, "503"),
         (507, "507"),
     ];
@@ -410,6 +448,8 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
                 .put(handlers::put_robot)
                 .delete(handlers::delete_robot),
         )
+        // The token is checked before the body is read (`admit` reads it).
+        .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
     let fk = Router::new()
         .route("/v1/robots/{name}/fk", axum::routing::post(handlers::fk))
@@ -434,11 +474,11 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
     let export = Router::new()
         .route("/v1/robots/{name}/closed-form", get(export::closed_form))
         .route("/v1/robots/{name}/urdf", get(export::urdf));
-    let api = admin
-        .merge(fk)
+    let api = fk
         .merge(export)
         .merge(extra)
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
+        .merge(admin)
         .route("/healthz", get(handlers::healthz))
         .route("/readyz", get(handlers::readyz))
         .route("/metrics", get(metrics_text))
@@ -454,6 +494,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state)
+        .layer(middleware::from_fn(strict::check_message))
         .layer(middleware::from_fn_with_state(access_log, record_metrics))
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(
