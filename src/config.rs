@@ -347,6 +347,10 @@ pub struct ServeConfig {
     /// at once; an answer that does not fit is replaced by 503 (Retry-After).
     #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20)]
     pub max_buffered_response_bytes: usize,
+    /// Most batch requests (REST `…/batch`) computed at once; more wait their
+    /// turn within the request timeout. 0: the number of CPUs.
+    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0)]
+    pub max_concurrent_batches: usize,
     /// A WebSocket or gRPC stream with no message from the client for this long is closed.
     #[arg(long, env = "KINSERVE_STREAM_IDLE_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
     pub stream_idle_timeout: Duration,
@@ -393,6 +397,7 @@ impl std::fmt::Debug for ServeConfig {
             linger_timeout,
             max_buffered_request_bytes,
             max_buffered_response_bytes,
+            max_concurrent_batches,
             stream_idle_timeout,
             shutdown_grace,
             shutdown_timeout,
@@ -424,6 +429,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("linger_timeout", linger_timeout)
             .field("max_buffered_request_bytes", max_buffered_request_bytes)
             .field("max_buffered_response_bytes", max_buffered_response_bytes)
+            .field("max_concurrent_batches", max_concurrent_batches)
             .field("stream_idle_timeout", stream_idle_timeout)
             .field("shutdown_grace", shutdown_grace)
             .field("shutdown_timeout", shutdown_timeout)
@@ -475,6 +481,7 @@ impl ServeConfig {
             linger_timeout: Duration::from_secs(30),
             max_buffered_request_bytes: 64 << 20,
             max_buffered_response_bytes: 64 << 20,
+            max_concurrent_batches: 0,
             stream_idle_timeout: Duration::from_secs(300),
             // No grace by default in tests: stopping a test server is instant.
             shutdown_grace: Duration::ZERO,
@@ -492,6 +499,10 @@ impl ServeConfig {
             body_timeout: self.body_timeout,
             max_buffered_request_bytes: self.max_buffered_request_bytes,
             max_buffered_response_bytes: self.max_buffered_response_bytes,
+            max_concurrent_batches: match self.max_concurrent_batches {
+                0 => std::thread::available_parallelism().map_or(2, |n| n.get()),
+                n => n,
+            },
             stream_idle_timeout: self.stream_idle_timeout,
             cors_origins: self.cors_origins.clone(),
             access_log: self.access_log,

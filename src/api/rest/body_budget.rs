@@ -98,13 +98,17 @@ impl Drop for Reservation {
     }
 }
 
-/// The two budgets of the REST adapter.
+/// The budgets of the REST adapter.
 #[derive(Clone, Debug)]
 pub struct RestBudgets {
     /// Request bodies being read or waiting for their handler.
     pub request: ByteBudget,
     /// Response bodies not yet handed to the connection.
     pub response: ByteBudget,
+    /// Batch requests computed at once (the others wait, within the request
+    /// timeout): a batch's working memory is several times its answer, and
+    /// more batches at once than cores only adds memory, not speed.
+    pub batch_slots: std::sync::Arc<tokio::sync::Semaphore>,
 }
 
 #[cfg(test)]

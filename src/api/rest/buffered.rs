@@ -148,8 +148,8 @@ fn stalled(idle: std::time::Duration, state: &AppState) -> Error {
 }
 
 fn unreadable(e: &axum::Error, limit: usize) -> Error {
-    let over = std::error::Error::source(e)
-        .is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
+    let over =
+        std::error::Error::source(e).is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
     if over {
         return too_large(limit);
     }
@@ -189,22 +189,48 @@ pub fn hold_response(
         Body::new(HeldBody {
             inner: body,
             rest: None,
-            _held: held,
+            held: Arc::new(held),
             ticket,
         })
     })
 }
 
-/// A response body that holds its budget until dropped and hands out frames
-/// of at most [`FRAME_BYTES`].
+/// A response body that holds its budget until its last byte is gone and
+/// hands out frames of at most [`FRAME_BYTES`].
+///
+/// The budget is released only when the body *and* every frame it handed out
+/// are dropped: the connection keeps frames queued until the kernel took
+/// them, and the frames share the answer's one allocation, so the bytes are
+/// in memory until then.
 struct HeldBody {
     inner: Body,
     rest: Option<Bytes>,
-    _held: Reservation,
+    held: Arc<Reservation>,
     ticket: Option<BodyTicket>,
 }
 
+/// The bytes of a frame and the budget they hold, for `Bytes::from_owner`.
+struct Owned {
+    data: Bytes,
+    _held: Arc<Reservation>,
+}
+
+impl AsRef<[u8]> for Owned {
+    fn as_ref(&self) -> &[u8] {
+        &self.data
+    }
+}
+
 impl HeldBody {
+    /// `data` from the inner body, holding the budget for as long as any
+    /// piece of it lives.
+    fn own(&self, data: Bytes) -> Bytes {
+        Bytes::from_owner(Owned {
+            data,
+            _held: self.held.clone(),
+        })
+    }
+
     /// The next piece of `data` (at most [`FRAME_BYTES`]), keeping the rest.
     fn piece(&mut self, mut data: Bytes) -> Frame<Bytes> {
         if data.len() > FRAME_BYTES {
@@ -231,7 +257,10 @@ impl HttpBody for HeldBody {
         }
         match Pin::new(&mut this.inner).poll_frame(cx) {
             Poll::Ready(Some(Ok(frame))) => match frame.into_data() {
-                Ok(data) => Poll::Ready(Some(Ok(this.piece(data)))),
+                Ok(data) => {
+                    let data = this.own(data);
+                    Poll::Ready(Some(Ok(this.piece(data))))
+                }
                 Err(other) => Poll::Ready(Some(Ok(other))),
             },
             other => other,

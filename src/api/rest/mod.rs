@@ -35,20 +35,19 @@ use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
+pub use body_budget::{ByteBudget, Reservation, RestBudgets};
+pub use conn::ConnActivity;
 pub use dto::{
     FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
     WsRequest,
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
-pub use body_budget::{ByteBudget, Reservation, RestBudgets};
-pub use conn::ConnActivity;
 pub use problem::{ApiError, Problem, ProblemField};
 
 use openapi::Complete;
 
 use crate::error::Error;
 use crate::service::Service;
-
 
 /// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
@@ -65,6 +64,7 @@ impl AppState {
         let budgets = RestBudgets {
             request: ByteBudget::new(inner.settings.max_buffered_request_bytes),
             response: ByteBudget::new(inner.settings.max_buffered_response_bytes),
+            batch_slots: Arc::new(Semaphore::new(inner.settings.max_concurrent_batches.max(1))),
         };
         AppState(Arc::new(Shared { inner, budgets }))
     }
@@ -98,6 +98,8 @@ pub struct RestSettings {
     pub max_buffered_request_bytes: usize,
     /// Most bytes of (large) answers waiting to be written at once (503 past it).
     pub max_buffered_response_bytes: usize,
+    /// Most batch requests (`…/batch`) computed at once; more wait their turn.
+    pub max_concurrent_batches: usize,
     /// A WebSocket with no message from the client for this long is closed.
     pub stream_idle_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
@@ -257,7 +259,8 @@ pub(crate) fn check_origin(
 /// Admission control and request timeout. The request body is read first,
 /// without a permit (see [`buffered::read_body`]); then, past the concurrency
 /// limit, a request is answered 503 at once instead of queueing; a request
-/// over the time limit gets 503. A large answer is counted against the
+/// over the time limit gets 503. Batch requests then wait for one of the
+/// batch slots (within the request timeout). A large answer is counted against the
 /// response byte budget (see [`buffered::hold_response`]).
 async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
@@ -272,7 +275,21 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
             ApiError(Error::Overloaded).into_response(),
         );
     };
-    let resp = match tokio::time::timeout(state.settings.request_timeout, next.run(req)).await {
+    let batch = req.uri().path().ends_with("/batch");
+    let run = async {
+        let _slot = match batch {
+            true => state
+                .budgets()
+                .batch_slots
+                .clone()
+                .acquire_owned()
+                .await
+                .ok(),
+            false => None,
+        };
+        next.run(req).await
+    };
+    let resp = match tokio::time::timeout(state.settings.request_timeout, run).await {
         Ok(resp) => resp,
         Err(_) => ApiError(Error::Unavailable {
             detail: "request timed out".into(),

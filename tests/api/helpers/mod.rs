@@ -16,6 +16,7 @@ pub(crate) mod models;
 pub(crate) mod pose;
 pub(crate) mod postgres;
 pub(crate) mod process;
+pub(crate) mod raw;
 pub(crate) mod ws;
 
 pub(crate) use app::*;
@@ -28,4 +29,5 @@ pub(crate) use models::*;
 pub(crate) use pose::*;
 pub(crate) use postgres::*;
 pub(crate) use process::*;
+pub(crate) use raw::*;
 pub(crate) use ws::*;

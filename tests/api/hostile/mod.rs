@@ -12,5 +12,6 @@
 mod auth;
 mod corpus_grpc;
 mod corpus_http;
+mod http_budgets;
 mod overload;
 mod ws;
