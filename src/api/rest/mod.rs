@@ -264,17 +264,19 @@ pub(crate) fn check_origin(
 /// response byte budget (see [`buffered::hold_response`]).
 async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
-    let (req, _body_bytes) = match buffered::read_body(req, &state).await {
+    let (req, body_bytes) = match buffered::read_body(req, &state).await {
         Ok(read) => read,
         Err(refusal) => return refusal,
     };
     let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
+        // A body read ahead is not left unread: the connection can be kept.
         return refuse_unread(
-            has_body(req.headers()),
+            body_bytes.is_none() && has_body(req.headers()),
             ApiError(Error::Overloaded).into_response(),
         );
     };
+    let _body_bytes = body_bytes;
     let batch = req.uri().path().ends_with("/batch");
     let run = async {
         let _slot = match batch {
