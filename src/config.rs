@@ -348,7 +348,8 @@ pub struct ServeConfig {
     #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20)]
     pub max_buffered_response_bytes: usize,
     /// Most batch requests (REST `…/batch`) computed at once; more wait their
-    /// turn within the request timeout. 0: the number of CPUs.
+    /// turn within the request timeout. 0: one less than the number of CPUs
+    /// (at least 1), so that a core is left for everything else.
     #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0)]
     pub max_concurrent_batches: usize,
     /// A WebSocket or gRPC stream with no message from the client for this long is closed.
@@ -500,7 +501,9 @@ impl ServeConfig {
             max_buffered_request_bytes: self.max_buffered_request_bytes,
             max_buffered_response_bytes: self.max_buffered_response_bytes,
             max_concurrent_batches: match self.max_concurrent_batches {
-                0 => std::thread::available_parallelism().map_or(2, |n| n.get()),
+                // Batches are computed on the async workers: leave one for I/O.
+                0 => std::thread::available_parallelism()
+                    .map_or(1, |n| n.get().saturating_sub(1).max(1)),
                 n => n,
             },
             stream_idle_timeout: self.stream_idle_timeout,

@@ -106,8 +106,9 @@ pub struct RestBudgets {
     /// Response bodies not yet handed to the connection.
     pub response: ByteBudget,
     /// Batch requests computed at once (the others wait, within the request
-    /// timeout): a batch's working memory is several times its answer, and
-    /// more batches at once than cores only adds memory, not speed.
+    /// timeout): a batch's working memory is several times its answer, more
+    /// batches at once than cores only adds memory, not speed, and batches
+    /// that occupy every runtime worker stall all other connections.
     pub batch_slots: std::sync::Arc<tokio::sync::Semaphore>,
 }
 
