@@ -8,7 +8,8 @@
 #   container, through published ports on 127.0.0.1); the token guards
 #   writes; a registered robot survives a restart and a new container on the
 #   same volume; `podman healthcheck run` passes; PID 1 runs as a non-root
-#   uid; `podman stop` (SIGTERM) ends it within 5 s with exit code 0; the
+#   uid; `podman stop` (SIGTERM) ends it within 9 s (5 s grace, then the
+#   drain) with exit code 0; the
 #   image size is reported against the target.
 #
 # Runs as root on a Debian bookworm machine; installs what it lacks (apt, and
@@ -36,7 +37,8 @@ CONTAINER=kinserve-check
 VOLUME=kinserve-check-data
 TOKEN="check-$(date +%s)-$$"
 ROBOT=check_planar_2r
-STOP_LIMIT_S=5
+# SIGTERM: 5 s of shutdown grace (/readyz 503, still serving), then the drain.
+STOP_LIMIT_S=9
 mkdir -p "$KINSERVE_CONTAINER_STATE"
 
 # --- steps, timings, failure ---------------------------------------------------------

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::api::budget::StreamBudget;
+use crate::api::budget::{ByteBudget, StreamBudget};
 use crate::api::grpc::GrpcSettings;
 use crate::api::rest::RestSettings;
 use crate::model::ModelLimits;
@@ -321,7 +321,9 @@ pub struct ServeConfig {
     /// Longest time a request may take.
     #[arg(long, env = "KINSERVE_REQUEST_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
     pub request_timeout: Duration,
-    /// Longest time a client may take to send its request headers (HTTP/1).
+    /// Longest time a client may take to send a request head: every request of
+    /// an HTTP/1 connection (the first one and each kept-alive one); on HTTP/2,
+    /// a connection with no request under way for this long is closed (GOAWAY).
     #[arg(long, env = "KINSERVE_HEADER_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub header_timeout: Duration,
     /// A WebSocket or gRPC stream that makes no progress in either direction
@@ -345,12 +347,42 @@ pub struct ServeConfig {
         default_value_t = 16
     )]
     pub max_streams_per_connection: usize,
-    /// Bytes of gRPC request messages held at once, over all calls, before
-    /// they can be decoded (each call's first 64 KiB are not counted); a call
-    /// that needs more fails at once with RESOURCE_EXHAUSTED.
+    /// Most bytes of request bodies buffered at once, REST bodies and gRPC
+    /// messages together (one budget): a REST body that does not fit is
+    /// answered 503 (Retry-After); a gRPC call that needs more fails at once
+    /// with RESOURCE_EXHAUSTED (each gRPC call's first 64 KiB are not counted).
     #[arg(long, env = "KINSERVE_MAX_BUFFERED_REQUEST_BYTES", default_value_t = 64 << 20)]
     pub max_buffered_request_bytes: usize,
-    /// How long shutdown waits for in-flight requests before exiting anyway.
+    /// Longest wait for the next piece of a request body; past it the request
+    /// is answered 408 and the connection closed. (The whole body must also
+    /// arrive within the request timeout.) Bodies are read before a request
+    /// permit is taken.
+    #[arg(long, env = "KINSERVE_BODY_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
+    pub body_timeout: Duration,
+    /// A connection whose client takes none of the answer for this long is closed.
+    #[arg(long, env = "KINSERVE_WRITE_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub write_timeout: Duration,
+    /// Longest lingering close: after answering, a closing connection reads and
+    /// discards what the client still sends for at most this long (at most 5 s
+    /// between two reads), so that the client sees the answer (413, 401…).
+    #[arg(long, env = "KINSERVE_LINGER_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub linger_timeout: Duration,
+    /// Most bytes of REST answers (of 64 KiB or more each) waiting to be sent
+    /// at once; an answer that does not fit is replaced by 503 (Retry-After).
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20)]
+    pub max_buffered_response_bytes: usize,
+    /// Most batch requests (REST `…/batch`) computed at once; more wait their
+    /// turn within the request timeout. 0: one less than the number of CPUs
+    /// (at least 1), so that a core is left for everything else.
+    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0)]
+    pub max_concurrent_batches: usize,
+    /// On shutdown, how long `/readyz` (and gRPC health) answer not-ready while
+    /// requests are still served as usual, so that load balancers stop sending
+    /// new ones before the listeners close.
+    #[arg(long, env = "KINSERVE_SHUTDOWN_GRACE", default_value = "5s", value_parser = parse_duration)]
+    pub shutdown_grace: Duration,
+    /// How long shutdown waits for in-flight requests (after the grace period
+    /// and the listeners closed) before exiting anyway.
     #[arg(long, env = "KINSERVE_SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_timeout: Duration,
     /// Longest time one IK solve may take; past it the best attempt is
@@ -382,10 +414,16 @@ impl std::fmt::Debug for ServeConfig {
             max_concurrent_requests,
             request_timeout,
             header_timeout,
+            body_timeout,
+            write_timeout,
+            linger_timeout,
+            max_buffered_request_bytes,
+            max_buffered_response_bytes,
+            max_concurrent_batches,
             stream_idle_timeout,
             max_streams,
             max_streams_per_connection,
-            max_buffered_request_bytes,
+            shutdown_grace,
             shutdown_timeout,
             ik_time_limit,
         } = self;
@@ -410,10 +448,16 @@ impl std::fmt::Debug for ServeConfig {
             .field("max_concurrent_requests", max_concurrent_requests)
             .field("request_timeout", request_timeout)
             .field("header_timeout", header_timeout)
+            .field("body_timeout", body_timeout)
+            .field("write_timeout", write_timeout)
+            .field("linger_timeout", linger_timeout)
+            .field("max_buffered_request_bytes", max_buffered_request_bytes)
+            .field("max_buffered_response_bytes", max_buffered_response_bytes)
+            .field("max_concurrent_batches", max_concurrent_batches)
             .field("stream_idle_timeout", stream_idle_timeout)
             .field("max_streams", max_streams)
             .field("max_streams_per_connection", max_streams_per_connection)
-            .field("max_buffered_request_bytes", max_buffered_request_bytes)
+            .field("shutdown_grace", shutdown_grace)
             .field("shutdown_timeout", shutdown_timeout)
             .field("ik_time_limit", ik_time_limit)
             .finish()
@@ -458,10 +502,17 @@ impl ServeConfig {
             max_concurrent_requests: 1024,
             request_timeout: Duration::from_secs(30),
             header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(10),
+            write_timeout: Duration::from_secs(30),
+            linger_timeout: Duration::from_secs(30),
+            max_buffered_request_bytes: 64 << 20,
+            max_buffered_response_bytes: 64 << 20,
+            max_concurrent_batches: 0,
             stream_idle_timeout: Duration::from_secs(300),
             max_streams: 64,
             max_streams_per_connection: 16,
-            max_buffered_request_bytes: 64 << 20,
+            // No grace by default in tests: stopping a test server is instant.
+            shutdown_grace: Duration::ZERO,
             shutdown_timeout: Duration::from_secs(10),
             ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
         }
@@ -473,6 +524,14 @@ impl ServeConfig {
             max_body_bytes: self.max_body_bytes,
             max_batch_body_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
+            body_timeout: self.body_timeout,
+            max_buffered_response_bytes: self.max_buffered_response_bytes,
+            max_concurrent_batches: match self.max_concurrent_batches {
+                // Batches are computed on the async workers: leave one for I/O.
+                0 => std::thread::available_parallelism()
+                    .map_or(1, |n| n.get().saturating_sub(1).max(1)),
+                n => n,
+            },
             stream_idle_timeout: self.stream_idle_timeout,
             cors_origins: self.cors_origins.clone(),
             access_log: self.access_log,
@@ -485,12 +544,18 @@ impl ServeConfig {
             max_message_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
-            max_buffered_request_bytes: self.max_buffered_request_bytes,
             access_log: self.access_log,
         }
     }
 
-    /// The open-streams budget shared by WebSockets and gRPC streams.
+    /// The buffered request bytes budget (one per server, shared by REST
+    /// bodies and gRPC messages).
+    pub fn request_byte_budget(&self) -> ByteBudget {
+        ByteBudget::new(self.max_buffered_request_bytes)
+    }
+
+    /// The stream budget these settings describe (one per server, shared by
+    /// the WebSocket and gRPC adapters).
     pub fn stream_budget(&self) -> StreamBudget {
         StreamBudget::new(self.max_streams, self.max_streams_per_connection)
     }

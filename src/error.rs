@@ -130,6 +130,20 @@ pub enum Error {
         /// What failed (never the database URL or its password).
         detail: String,
     },
+    /// The client did not send its request (the body) in time; the connection
+    /// is closed (HTTP 408, gRPC DEADLINE_EXCEEDED).
+    #[error("request timeout: {detail}")]
+    RequestTimeout {
+        /// What did not arrive, and the limit.
+        detail: String,
+    },
+    /// The request uses an HTTP feature the server does not implement, such as
+    /// a transfer coding other than `chunked` (HTTP 501, gRPC UNIMPLEMENTED).
+    #[error("not implemented: {detail}")]
+    NotImplemented {
+        /// What is not supported.
+        detail: String,
+    },
     /// A bug: a panic caught in a handler (HTTP 500, gRPC INTERNAL).
     #[error("internal error: {detail}")]
     Internal {

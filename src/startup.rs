@@ -1,21 +1,16 @@
 //! Building and running the server: binds both listeners (port 0 works), loads
 //! robots, serves until a shutdown signal, then drains gracefully.
 
+mod http_server;
+
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
-
-use axum::Router;
-use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
-use hyper_util::server::conn::auto;
-use hyper_util::server::graceful::GracefulShutdown;
-use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 use tokio_util::sync::CancellationToken;
-use tower::ServiceExt;
+
+pub use http_server::HttpServerSettings;
 
 use crate::api::rest::{self, AppInner, AppState};
 use crate::config::ServeConfig;
@@ -41,7 +36,9 @@ pub struct App {
 pub struct ShutdownHandle(CancellationToken);
 
 impl ShutdownHandle {
-    /// Starts the graceful shutdown (readiness flips, streams close, in-flight requests finish).
+    /// Starts the graceful shutdown: readiness flips at once, requests are
+    /// served as usual for the shutdown grace period, then the listeners close,
+    /// streams close and in-flight requests finish.
     pub fn shutdown(&self) {
         self.0.cancel();
     }
@@ -130,18 +127,22 @@ impl App {
             grpc_addr,
             syncer,
         } = self;
+        // `shutdown`: the drain starts (not ready); `stop`: the listeners close.
+        let stop = CancellationToken::new();
         if let Some(syncer) = syncer {
-            tokio::spawn(syncer.run(applier(service.clone()), shutdown.clone()));
+            tokio::spawn(syncer.run(applier(service.clone()), stop.clone()));
         }
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
         let streams = config.stream_budget();
+        let request_bytes = config.request_byte_budget();
         let state = AppState::new(AppInner {
             service: service.clone(),
             settings: config.rest_settings(),
-            shutdown: shutdown.clone(),
+            shutdown: stop.clone(),
             metrics: crate::telemetry::metrics_handle(),
             permits: permits.clone(),
             streams: streams.clone(),
+            request_bytes: request_bytes.clone(),
         });
         service.record_robot_count();
         let router = rest::router(state);
@@ -158,30 +159,36 @@ impl App {
             config.grpc_settings(),
             permits,
             streams,
-            shutdown.clone(),
+            request_bytes,
+            crate::api::grpc::Lifecycle {
+                draining: shutdown.clone(),
+                stop: stop.clone(),
+            },
         );
-        let http_server = serve_http(
+        let http_server = http_server::serve_http(
             http,
             router,
-            config.header_timeout,
-            config.max_batch_body_bytes,
-            shutdown.clone(),
+            HttpServerSettings {
+                header_timeout: config.header_timeout,
+                write_timeout: config.write_timeout,
+                linger_timeout: config.linger_timeout,
+            },
+            stop.clone(),
         );
         service.set_ready(true);
         tracing::info!(http = %http_addr, grpc = %grpc_addr, "kinserve serving");
-        let svc = service.clone();
-        let draining = shutdown.clone();
-        tokio::spawn(async move {
-            draining.cancelled().await;
-            svc.set_ready(false);
-            tracing::info!("shutdown requested: draining");
-        });
-        let both = async { tokio::try_join!(http_server.into_future(), grpc_server) };
+        tokio::spawn(drain(
+            service.clone(),
+            shutdown.clone(),
+            stop.clone(),
+            config.shutdown_grace,
+        ));
+        let both = async { tokio::try_join!(http_server, grpc_server) };
         let drain_timeout = config.shutdown_timeout;
         tokio::select! {
             r = both => { r?; }
             _ = async {
-                shutdown.cancelled().await;
+                stop.cancelled().await;
                 tokio::time::sleep(drain_timeout).await;
             } => {
                 tracing::warn!("in-flight requests did not finish within the shutdown timeout");
@@ -190,6 +197,30 @@ impl App {
         tracing::info!("kinserve stopped");
         Ok(())
     }
+}
+
+/// The drain: once `shutdown` is asked for, readiness turns false (`/readyz`
+/// 503, gRPC health NOT_SERVING) while everything else is served as usual for
+/// `grace`, so that load balancers take the instance out before its
+/// listeners close; then `stop` closes them.
+async fn drain(
+    service: Arc<Service>,
+    shutdown: CancellationToken,
+    stop: CancellationToken,
+    grace: std::time::Duration,
+) {
+    tokio::select! {
+        _ = shutdown.cancelled() => {}
+        _ = stop.cancelled() => return,
+    }
+    service.set_ready(false);
+    tracing::info!(
+        grace_seconds = grace.as_secs_f64(),
+        "shutdown requested: not ready; serving until the grace period ends"
+    );
+    tokio::time::sleep(grace).await;
+    tracing::info!("closing the listeners; draining in-flight requests");
+    stop.cancel();
 }
 
 /// The API token to require: surrounding whitespace (a newline from a secret
@@ -256,232 +287,6 @@ fn applier(service: Arc<Service>) -> Applier {
             service.record_robot_count();
         }
     })
-}
-
-/// Serves the REST router on `listener` (HTTP/1.1 and h2c, WebSocket upgrades)
-/// until `shutdown` turns true, then waits for open connections to finish.
-///
-/// Unlike `axum::serve`, every connection must deliver its request headers within
-/// `header_timeout`: HTTP/1 connections (the first request and every later one on
-/// a kept-alive connection) through hyper's header read timeout, and any
-/// connection, whatever the protocol, must complete its first request head
-/// within that time or it is closed (a client that connects and sends nothing,
-/// or a few bytes, holds nothing for long).
-///
-/// Connections close with a lingering close (see [`Lingering`]), so that a
-/// client still sending a body the server refused (503 overloaded, 413 too
-/// large) receives the answer instead of a connection reset.
-async fn serve_http(
-    listener: TcpListener,
-    router: Router,
-    header_timeout: Duration,
-    max_body_bytes: usize,
-    shutdown: CancellationToken,
-) -> std::io::Result<()> {
-    let header_timeout = header_timeout.max(Duration::from_millis(1));
-    let mut builder = auto::Builder::new(TokioExecutor::new());
-    builder
-        .http1()
-        .timer(TokioTimer::new())
-        .header_read_timeout(header_timeout);
-    // CONNECT protocol for WebSockets over HTTP/2; pings so dead h2 peers are noticed.
-    builder
-        .http2()
-        .timer(TokioTimer::new())
-        .enable_connect_protocol()
-        .keep_alive_interval(Duration::from_secs(30));
-    let builder = Arc::new(builder);
-    let graceful = GracefulShutdown::new();
-    loop {
-        let (tcp, _peer) = tokio::select! {
-            _ = shutdown.cancelled() => break,
-            r = listener.accept() => match r {
-                Ok(conn) => conn,
-                Err(e) => {
-                    accept_error(e).await;
-                    continue;
-                }
-            },
-        };
-        let _ = tcp.set_nodelay(true);
-        // Set by the first request that reaches the router on this connection.
-        let seen = Arc::new(AtomicBool::new(false));
-        let flag = seen.clone();
-        // The connection's open streams (WebSockets), for the per-connection budget.
-        let streams = crate::api::budget::ConnectionStreams::default();
-        let service = router
-            .clone()
-            .map_request(move |mut req: axum::http::Request<_>| {
-                flag.store(true, Ordering::Release);
-                req.extensions_mut().insert(streams.clone());
-                req
-            });
-        let builder = builder.clone();
-        let watcher = graceful.watcher();
-        tokio::spawn(async move {
-            let conn = builder.serve_connection_with_upgrades(
-                TokioIo::new(Lingering::new(tcp, max_body_bytes)),
-                TowerToHyperService::new(service),
-            );
-            let mut conn = std::pin::pin!(watcher.watch(conn.into_owned()));
-            tokio::select! {
-                _ = conn.as_mut() => return,
-                _ = tokio::time::sleep(header_timeout) => {}
-            }
-            if !seen.load(Ordering::Acquire) {
-                tracing::debug!("closing a connection that sent no complete request head in time");
-                return;
-            }
-            let _ = conn.await;
-        });
-    }
-    drop(listener);
-    graceful.shutdown().await;
-    Ok(())
-}
-
-/// Longest a closed connection keeps reading what its client still sends.
-const LINGER_TIME: Duration = Duration::from_secs(2);
-
-/// A server-side TCP connection with a lingering close.
-///
-/// When the server answers before reading the whole request body (a request
-/// refused with 503 or 413) and then closes, the kernel answers the unread
-/// bytes with a reset, which can destroy the answer before the client has read
-/// it: the client sees "connection reset" or "broken pipe", not the status.
-/// So once a connection that sent something is dropped, its write side is
-/// shut down (FIN after the complete answer) and what the client still sends
-/// is read and discarded, for at most [`LINGER_TIME`] and `max_bytes`, before
-/// the socket is closed. Connections that never sent anything (e.g. closed for
-/// a header timeout) close at once.
-struct Lingering {
-    tcp: Option<tokio::net::TcpStream>,
-    wrote: bool,
-    max_bytes: usize,
-}
-
-impl Lingering {
-    fn new(tcp: tokio::net::TcpStream, max_bytes: usize) -> Lingering {
-        Lingering {
-            tcp: Some(tcp),
-            wrote: false,
-            max_bytes,
-        }
-    }
-
-    fn closed() -> std::io::Error {
-        std::io::Error::from(std::io::ErrorKind::NotConnected)
-    }
-}
-
-impl tokio::io::AsyncRead for Lingering {
-    fn poll_read(
-        self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-        buf: &mut tokio::io::ReadBuf<'_>,
-    ) -> std::task::Poll<std::io::Result<()>> {
-        match self.get_mut().tcp.as_mut() {
-            Some(tcp) => std::pin::Pin::new(tcp).poll_read(cx, buf),
-            None => std::task::Poll::Ready(Err(Lingering::closed())),
-        }
-    }
-}
-
-impl tokio::io::AsyncWrite for Lingering {
-    fn poll_write(
-        self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-        buf: &[u8],
-    ) -> std::task::Poll<std::io::Result<usize>> {
-        let this = self.get_mut();
-        this.wrote = true;
-        match this.tcp.as_mut() {
-            Some(tcp) => std::pin::Pin::new(tcp).poll_write(cx, buf),
-            None => std::task::Poll::Ready(Err(Lingering::closed())),
-        }
-    }
-
-    fn poll_write_vectored(
-        self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-        bufs: &[std::io::IoSlice<'_>],
-    ) -> std::task::Poll<std::io::Result<usize>> {
-        let this = self.get_mut();
-        this.wrote = true;
-        match this.tcp.as_mut() {
-            Some(tcp) => std::pin::Pin::new(tcp).poll_write_vectored(cx, bufs),
-            None => std::task::Poll::Ready(Err(Lingering::closed())),
-        }
-    }
-
-    fn is_write_vectored(&self) -> bool {
-        self.tcp.as_ref().is_some_and(|t| t.is_write_vectored())
-    }
-
-    fn poll_flush(
-        self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-    ) -> std::task::Poll<std::io::Result<()>> {
-        match self.get_mut().tcp.as_mut() {
-            Some(tcp) => std::pin::Pin::new(tcp).poll_flush(cx),
-            None => std::task::Poll::Ready(Ok(())),
-        }
-    }
-
-    fn poll_shutdown(
-        self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-    ) -> std::task::Poll<std::io::Result<()>> {
-        match self.get_mut().tcp.as_mut() {
-            Some(tcp) => std::pin::Pin::new(tcp).poll_shutdown(cx),
-            None => std::task::Poll::Ready(Ok(())),
-        }
-    }
-}
-
-impl Drop for Lingering {
-    fn drop(&mut self) {
-        let Some(mut tcp) = self.tcp.take() else {
-            return;
-        };
-        if !self.wrote {
-            return;
-        }
-        let Ok(runtime) = tokio::runtime::Handle::try_current() else {
-            return;
-        };
-        let max_bytes = self.max_bytes;
-        runtime.spawn(async move {
-            use tokio::io::{AsyncReadExt, AsyncWriteExt};
-            let _ = tcp.shutdown().await;
-            let mut buf = vec![0u8; 16 << 10];
-            let mut read = 0usize;
-            let _ = tokio::time::timeout(LINGER_TIME, async {
-                while read < max_bytes {
-                    match tcp.read(&mut buf).await {
-                        Ok(0) | Err(_) => break,
-                        Ok(n) => read += n,
-                    }
-                }
-            })
-            .await;
-        });
-    }
-}
-
-/// Errors of `accept`: a connection that failed before it was accepted is
-/// skipped; anything else (e.g. out of file descriptors) is logged and retried
-/// after a pause instead of spinning.
-async fn accept_error(e: std::io::Error) {
-    use std::io::ErrorKind::{ConnectionAborted, ConnectionRefused, ConnectionReset};
-    if matches!(
-        e.kind(),
-        ConnectionAborted | ConnectionRefused | ConnectionReset
-    ) {
-        return;
-    }
-    tracing::error!(error = %e, "accept failed; retrying shortly");
-    tokio::time::sleep(Duration::from_millis(100)).await;
 }
 
 async fn os_signal() {

@@ -145,6 +145,12 @@ impl ByteBudget {
         self.inner.used.load(Ordering::Acquire)
     }
 
+    /// Takes `n` bytes, or `None` (nothing taken) when they do not fit.
+    pub fn try_reserve(&self, n: usize) -> Option<Reservation> {
+        let mut r = self.reservation();
+        r.resize(n).then_some(r)
+    }
+
     /// An empty reservation, to grow as data arrives.
     pub fn reservation(&self) -> Reservation {
         Reservation {
@@ -165,6 +171,18 @@ impl Reservation {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         self.bytes
+    }
+
+    /// Holds `n` more bytes; `false` (and nothing taken) when they do not fit.
+    pub fn grow(&mut self, n: usize) -> bool {
+        self.bytes
+            .checked_add(n)
+            .is_some_and(|total| self.resize(total))
+    }
+
+    /// Holds at least `n` bytes in all (grows by the difference if needed).
+    pub fn grow_to(&mut self, n: usize) -> bool {
+        n <= self.bytes || self.resize(n)
     }
 
     /// Grows or shrinks the reservation to `bytes`. Growing fails (and

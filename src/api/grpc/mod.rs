@@ -73,9 +73,6 @@ pub struct GrpcSettings {
     /// A stream that makes no progress in either direction (no message from
     /// the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
-    /// Bytes of request messages the server holds, over all calls, before it
-    /// can decode them (see `buffered`); past it, calls fail RESOURCE_EXHAUSTED.
-    pub max_buffered_request_bytes: usize,
     /// One access-log line per call (target `kinserve::access`).
     pub access_log: bool,
 }
@@ -594,15 +591,27 @@ fn panic_response(
     Status::from(super::panic_to_error(err.as_ref(), "gRPC handler")).into_http()
 }
 
-/// Serves gRPC (kinematics, health, reflection) on `listener` until `shutdown` is cancelled.
+/// When the gRPC server reports NOT_SERVING and when it stops.
+#[derive(Clone, Debug)]
+pub struct Lifecycle {
+    /// Cancelled when the drain starts: health turns NOT_SERVING, calls are still served.
+    pub draining: CancellationToken,
+    /// Cancelled when the listener closes (streams end, calls drain).
+    pub stop: CancellationToken,
+}
+
+/// Serves gRPC (kinematics, health, reflection) on `listener` until
+/// `lifecycle.stop` is cancelled; health is NOT_SERVING from `lifecycle.draining` on.
 pub async fn serve(
     listener: TcpListener,
     service: Arc<Service>,
     settings: GrpcSettings,
     permits: Arc<Semaphore>,
     streams: StreamBudget,
-    shutdown: CancellationToken,
+    request_bytes: ByteBudget,
+    lifecycle: Lifecycle,
 ) -> std::io::Result<()> {
+    let shutdown = lifecycle.stop;
     let (health, health_service) = tonic_health::server::health_reporter();
     health
         .set_serving::<KinematicsServiceServer<GrpcService>>()
@@ -631,8 +640,7 @@ pub async fn serve(
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
     let access_log = settings.access_log;
-    let buffered =
-        buffered::BufferedBytesLayer::new(ByteBudget::new(settings.max_buffered_request_bytes));
+    let buffered = buffered::BufferedBytesLayer::new(request_bytes);
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
         settings: Arc::new(settings),
@@ -675,13 +683,17 @@ pub async fn serve(
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .serve_with_incoming_shutdown(incoming, async move {
-            shutdown.cancelled().await;
+            tokio::select! {
+                _ = lifecycle.draining.cancelled() => {}
+                _ = shutdown.cancelled() => {}
+            }
             health_on_stop
                 .set_not_serving::<KinematicsServiceServer<GrpcService>>()
                 .await;
             health_on_stop
                 .set_service_status("", tonic_health::ServingStatus::NotServing)
                 .await;
+            shutdown.cancelled().await;
         })
         .await
         .map_err(std::io::Error::other)

@@ -27,6 +27,8 @@ pub fn code_of(e: &Error) -> Code {
         Error::IkNotConverged { .. } => Code::FailedPrecondition,
         Error::PreconditionFailed { .. } => Code::FailedPrecondition,
         Error::StoreUnavailable { .. } => Code::Unavailable,
+        Error::RequestTimeout { .. } => Code::DeadlineExceeded,
+        Error::NotImplemented { .. } => Code::Unimplemented,
         Error::Internal { .. } => Code::Internal,
     }
 }

@@ -1,5 +1,8 @@
 //! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
 
+pub mod body_budget;
+mod buffered;
+pub mod conn;
 mod dto;
 mod export;
 mod extract;
@@ -7,6 +10,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod strict;
 mod velocity;
 mod ws;
 
@@ -31,6 +35,8 @@ use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 use utoipa_swagger_ui::SwaggerUi;
 
+pub use body_budget::{ByteBudget, Reservation, RestBudgets};
+pub use conn::ConnActivity;
 pub use dto::{
     FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
     WsRequest,
@@ -45,19 +51,34 @@ use crate::service::Service;
 
 /// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
-pub struct AppState(Arc<AppInner>);
+pub struct AppState(Arc<Shared>);
+
+struct Shared {
+    inner: AppInner,
+    budgets: RestBudgets,
+}
 
 impl AppState {
-    /// Wraps the shared parts.
+    /// Wraps the shared parts; the byte budgets are sized by its settings.
     pub fn new(inner: AppInner) -> AppState {
-        AppState(Arc::new(inner))
+        let budgets = RestBudgets {
+            request: inner.request_bytes.clone(),
+            response: ByteBudget::new(inner.settings.max_buffered_response_bytes),
+            batch_slots: Arc::new(Semaphore::new(inner.settings.max_concurrent_batches.max(1))),
+        };
+        AppState(Arc::new(Shared { inner, budgets }))
+    }
+
+    /// The request and response byte budgets.
+    pub fn budgets(&self) -> &RestBudgets {
+        &self.0.budgets
     }
 }
 
 impl std::ops::Deref for AppState {
     type Target = AppInner;
     fn deref(&self) -> &AppInner {
-        &self.0
+        &self.0.inner
     }
 }
 
@@ -71,6 +92,12 @@ pub struct RestSettings {
     pub max_batch_body_bytes: usize,
     /// Longest time a request may take.
     pub request_timeout: Duration,
+    /// Longest wait for the next piece of a request body (408 past it).
+    pub body_timeout: Duration,
+    /// Most bytes of (large) answers waiting to be written at once (503 past it).
+    pub max_buffered_response_bytes: usize,
+    /// Most batch requests (`…/batch`) computed at once; more wait their turn.
+    pub max_concurrent_batches: usize,
     /// A WebSocket that makes no progress in either direction (no data
     /// message from the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
@@ -94,6 +121,9 @@ pub struct AppInner {
     pub permits: Arc<Semaphore>,
     /// Open WebSockets (shared with gRPC streams); a WebSocket holds a slot, not a request permit.
     pub streams: crate::api::budget::StreamBudget,
+    /// Request bytes buffered at once (bodies read before a permit), one
+    /// budget with the gRPC adapter's undecoded messages.
+    pub request_bytes: ByteBudget,
 }
 
 struct SecurityAddon;
@@ -230,23 +260,49 @@ pub(crate) fn check_origin(
     })
 }
 
-/// Admission control and request timeout: past the concurrency limit a request
-/// is answered 503 at once instead of queueing; a request over the time limit gets 503.
+/// Admission control and request timeout. The request body is read first,
+/// without a permit (see [`buffered::read_body`]); then, past the concurrency
+/// limit, a request is answered 503 at once instead of queueing; a request
+/// over the time limit gets 503. Batch requests then wait for one of the
+/// batch slots (within the request timeout). A large answer is counted against the
+/// response byte budget (see [`buffered::hold_response`]).
 async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
+    let (req, body_bytes) = match buffered::read_body(req, &state).await {
+        Ok(read) => read,
+        Err(refusal) => return refusal,
+    };
     let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
+        // A body read ahead is not left unread: the connection can be kept.
         return refuse_unread(
-            has_body(req.headers()),
+            body_bytes.is_none() && has_body(req.headers()),
             ApiError(Error::Overloaded).into_response(),
         );
     };
-    match tokio::time::timeout(state.settings.request_timeout, next.run(req)).await {
+    let _body_bytes = body_bytes;
+    let batch = req.uri().path().ends_with("/batch");
+    let run = async {
+        let _slot = match batch {
+            true => state
+                .budgets()
+                .batch_slots
+                .clone()
+                .acquire_owned()
+                .await
+                .ok(),
+            false => None,
+        };
+        next.run(req).await
+    };
+    let resp = match tokio::time::timeout(state.settings.request_timeout, run).await {
         Ok(resp) => resp,
         Err(_) => ApiError(Error::Unavailable {
             detail: "request timed out".into(),
         })
         .into_response(),
-    }
+    };
+    buffered::hold_response(resp, &state, conn)
 }
 
 /// The route label of a matched path, without allocating for the known routes.
@@ -302,12 +358,14 @@ fn status_label(code: u16) -> SharedString {
         (401, "401"),
         (404, "404"),
         (405, "405"),
+        (408, "408"),
         (409, "409"),
         (412, "412"),
         (413, "413"),
         (415, "415"),
         (422, "422"),
         (500, "500"),
+        (501, "501"),
         (503, "503"),
         (507, "507"),
     ];
@@ -413,6 +471,8 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
                 .put(handlers::put_robot)
                 .delete(handlers::delete_robot),
         )
+        // The token is checked before the body is read (`admit` reads it).
+        .route_layer(middleware::from_fn_with_state(state.clone(), admit))
         .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
     let fk = Router::new()
         .route("/v1/robots/{name}/fk", axum::routing::post(handlers::fk))
@@ -441,11 +501,11 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
     let export = Router::new()
         .route("/v1/robots/{name}/closed-form", get(export::closed_form))
         .route("/v1/robots/{name}/urdf", get(export::urdf));
-    let api = admin
-        .merge(fk)
+    let api = fk
         .merge(export)
         .merge(extra)
         .route_layer(middleware::from_fn_with_state(state.clone(), admit))
+        .merge(admin)
         .route("/healthz", get(handlers::healthz))
         .route("/readyz", get(handlers::readyz))
         .route("/metrics", get(metrics_text))
@@ -461,6 +521,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .with_state(state)
+        .layer(middleware::from_fn(strict::check_message))
         .layer(middleware::from_fn_with_state(access_log, record_metrics))
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(

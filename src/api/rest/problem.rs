@@ -114,6 +114,16 @@ fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
             "store-unavailable",
             "Registry store unavailable",
         ),
+        Error::RequestTimeout { .. } => (
+            StatusCode::REQUEST_TIMEOUT,
+            "request-timeout",
+            "Request timeout",
+        ),
+        Error::NotImplemented { .. } => (
+            StatusCode::NOT_IMPLEMENTED,
+            "not-implemented",
+            "Not implemented",
+        ),
         Error::Internal { .. } => (
             StatusCode::INTERNAL_SERVER_ERROR,
             "internal",

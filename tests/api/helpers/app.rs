@@ -109,6 +109,12 @@ impl TestApp {
             .expect("grpc connects")
     }
 
+    /// Starts the graceful shutdown without waiting for it (the drain's grace
+    /// period, then the listeners close).
+    pub fn begin_shutdown(&self) {
+        self.shutdown.shutdown();
+    }
+
     /// Stops the server gracefully and waits for it to exit; returns its result.
     pub async fn stop(mut self) -> std::io::Result<()> {
         self.shutdown.shutdown();

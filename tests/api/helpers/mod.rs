@@ -18,6 +18,7 @@ pub(crate) mod pose;
 pub(crate) mod pose_format;
 pub(crate) mod postgres;
 pub(crate) mod process;
+pub(crate) mod raw;
 pub(crate) mod ws;
 
 pub(crate) use app::*;
@@ -32,4 +33,5 @@ pub(crate) use pose::*;
 pub(crate) use pose_format::*;
 pub(crate) use postgres::*;
 pub(crate) use process::*;
+pub(crate) use raw::*;
 pub(crate) use ws::*;

@@ -199,6 +199,7 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
         metrics: kinserve::telemetry::metrics_handle(),
         permits: Arc::new(tokio::sync::Semaphore::new(1)),
         streams: config.stream_budget(),
+        request_bytes: config.request_byte_budget(),
     });
     let boom = axum::Router::new()
         .route(
