@@ -332,6 +332,11 @@ pub struct ServeConfig {
     /// no progress).
     #[arg(long, env = "KINSERVE_STREAM_IDLE_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
     pub stream_idle_timeout: Duration,
+    /// Most connections open at once, both listeners together; with every
+    /// slot taken nothing more is accepted (new clients wait in the kernel's
+    /// backlog) until one closes. Each idle connection costs about 10–20 KiB.
+    #[arg(long, env = "KINSERVE_MAX_CONNECTIONS", default_value_t = 4096)]
+    pub max_connections: usize,
     /// Most streams open at once (WebSockets and gRPC StreamForwardKinematics
     /// calls together); streams never take request permits. More are refused
     /// at once: 503 before the WebSocket upgrade, RESOURCE_EXHAUSTED on gRPC.
@@ -421,6 +426,7 @@ impl std::fmt::Debug for ServeConfig {
             max_buffered_response_bytes,
             max_concurrent_batches,
             stream_idle_timeout,
+            max_connections,
             max_streams,
             max_streams_per_connection,
             shutdown_grace,
@@ -455,6 +461,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("max_buffered_response_bytes", max_buffered_response_bytes)
             .field("max_concurrent_batches", max_concurrent_batches)
             .field("stream_idle_timeout", stream_idle_timeout)
+            .field("max_connections", max_connections)
             .field("max_streams", max_streams)
             .field("max_streams_per_connection", max_streams_per_connection)
             .field("shutdown_grace", shutdown_grace)
@@ -509,6 +516,7 @@ impl ServeConfig {
             max_buffered_response_bytes: 64 << 20,
             max_concurrent_batches: 0,
             stream_idle_timeout: Duration::from_secs(300),
+            max_connections: 4096,
             max_streams: 64,
             max_streams_per_connection: 16,
             // No grace by default in tests: stopping a test server is instant.

@@ -12,6 +12,7 @@ use tokio_util::sync::CancellationToken;
 
 pub use http_server::HttpServerSettings;
 
+use crate::api::budget::{Budgets, ConnectionSlots};
 use crate::api::rest::{self, AppInner, AppState};
 use crate::config::ServeConfig;
 use crate::registry::postgres::sync::{Applier, Syncer};
@@ -135,6 +136,7 @@ impl App {
         let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
         let streams = config.stream_budget();
         let request_bytes = config.request_byte_budget();
+        let connections = ConnectionSlots::new(config.max_connections);
         let state = AppState::new(AppInner {
             service: service.clone(),
             settings: config.rest_settings(),
@@ -157,9 +159,12 @@ impl App {
             grpc,
             service.clone(),
             config.grpc_settings(),
-            permits,
-            streams,
-            request_bytes,
+            Budgets {
+                permits,
+                streams,
+                request_bytes,
+                connections: connections.clone(),
+            },
             crate::api::grpc::Lifecycle {
                 draining: shutdown.clone(),
                 stop: stop.clone(),
@@ -173,6 +178,7 @@ impl App {
                 write_timeout: config.write_timeout,
                 linger_timeout: config.linger_timeout,
             },
+            connections,
             stop.clone(),
         );
         service.set_ready(true);

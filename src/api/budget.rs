@@ -12,7 +12,11 @@
 //!   data arrives and given back when it has been consumed; when the budget is
 //!   spent the request fails at once instead of waiting.
 //!
-//! Both are lock-free counters; a refused reservation changes nothing.
+//! * [`ConnectionSlots`]: accepted connections, over both listeners. When
+//!   every slot is taken the listeners stop accepting (new clients wait in the
+//!   kernel's backlog) until a connection closes.
+//!
+//! The first two are lock-free counters; a refused reservation changes nothing.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -28,6 +32,58 @@ fn try_add(counter: &AtomicUsize, n: usize, limit: usize) -> bool {
             used.checked_add(n).filter(|total| *total <= limit)
         })
         .is_ok()
+}
+
+// ---------------------------------------------------------------- connections
+
+/// Slots for open connections, shared by the REST and gRPC listeners.
+#[derive(Clone, Debug)]
+pub struct ConnectionSlots(Arc<Semaphore>);
+
+impl ConnectionSlots {
+    /// At most `max` connections at once (at least 1).
+    pub fn new(max: usize) -> ConnectionSlots {
+        ConnectionSlots(Arc::new(Semaphore::new(max.max(1))))
+    }
+
+    /// Waits for a free slot; the connection holds it until it is dropped.
+    /// `None` only if the slots were closed (never, in practice).
+    pub async fn wait(&self) -> Option<OwnedSemaphorePermit> {
+        self.0.clone().acquire_owned().await.ok()
+    }
+
+    /// Free slots now.
+    pub fn available(&self) -> usize {
+        self.0.available_permits()
+    }
+}
+
+/// Errors of `accept`: a connection that failed before it was accepted is
+/// skipped; anything else (e.g. out of file descriptors) is logged and retried
+/// after a pause instead of spinning.
+pub async fn accept_error(e: std::io::Error) {
+    use std::io::ErrorKind::{ConnectionAborted, ConnectionRefused, ConnectionReset};
+    if matches!(
+        e.kind(),
+        ConnectionAborted | ConnectionRefused | ConnectionReset
+    ) {
+        return;
+    }
+    tracing::error!(error = %e, "accept failed; retrying shortly");
+    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+}
+
+/// The budgets the gRPC adapter shares with the REST one.
+#[derive(Clone, Debug)]
+pub struct Budgets {
+    /// Requests in flight (REST requests and gRPC unary calls together).
+    pub permits: Arc<Semaphore>,
+    /// Open streams.
+    pub streams: StreamBudget,
+    /// Buffered request bytes.
+    pub request_bytes: ByteBudget,
+    /// Open connections.
+    pub connections: ConnectionSlots,
 }
 
 // ---------------------------------------------------------------- streams

@@ -59,6 +59,7 @@ pub async fn serve_http(
     listener: TcpListener,
     router: Router,
     settings: HttpServerSettings,
+    connections: crate::api::budget::ConnectionSlots,
     stop: CancellationToken,
 ) -> std::io::Result<()> {
     let settings = HttpServerSettings {
@@ -75,9 +76,19 @@ pub async fn serve_http(
             r = listener.accept() => match r {
                 Ok(conn) => conn,
                 Err(e) => {
-                    accept_error(e).await;
+                    crate::api::budget::accept_error(e).await;
                     continue;
                 }
+            },
+        };
+        // Served once a connection slot is free; until then nothing more is
+        // accepted (new clients wait in the backlog). Accepting first means an
+        // idle listener holds no slot.
+        let slot = tokio::select! {
+            _ = stop.cancelled() => break,
+            slot = connections.wait() => match slot {
+                Some(slot) => slot,
+                None => break,
             },
         };
         let _ = tcp.set_nodelay(true);
@@ -87,6 +98,7 @@ pub async fn serve_http(
             settings,
             stop: stop.clone(),
             _open: open.clone(),
+            _slot: slot,
         };
         tokio::spawn(conn.serve(tcp));
     }
@@ -118,6 +130,8 @@ struct Conn {
     settings: HttpServerSettings,
     stop: CancellationToken,
     _open: mpsc::Sender<()>,
+    /// The connection's slot of `--max-connections`, freed when it ends.
+    _slot: tokio::sync::OwnedSemaphorePermit,
 }
 
 impl Conn {
@@ -321,19 +335,4 @@ async fn linger(mut tcp: TcpStream, limit: Duration) {
         }
     })
     .await;
-}
-
-/// Errors of `accept`: a connection that failed before it was accepted is
-/// skipped; anything else (e.g. out of file descriptors) is logged and retried
-/// after a pause instead of spinning.
-async fn accept_error(e: std::io::Error) {
-    use std::io::ErrorKind::{ConnectionAborted, ConnectionRefused, ConnectionReset};
-    if matches!(
-        e.kind(),
-        ConnectionAborted | ConnectionRefused | ConnectionReset
-    ) {
-        return;
-    }
-    tracing::error!(error = %e, "accept failed; retrying shortly");
-    tokio::time::sleep(Duration::from_millis(100)).await;
 }

@@ -15,12 +15,11 @@ use std::time::Duration;
 use tokio::net::TcpListener;
 
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
-use tokio_stream::wrappers::TcpListenerStream;
-use tokio_stream::{Stream, StreamExt};
+use tokio_stream::Stream;
 use tokio_util::sync::CancellationToken;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::api::budget::{ByteBudget, StreamBudget};
+use crate::api::budget::{Budgets, StreamBudget};
 use crate::error::Error;
 use crate::registry::{Condition, PutMode};
 use crate::service::{Configurations, Service};
@@ -606,9 +605,7 @@ pub async fn serve(
     listener: TcpListener,
     service: Arc<Service>,
     settings: GrpcSettings,
-    permits: Arc<Semaphore>,
-    streams: StreamBudget,
-    request_bytes: ByteBudget,
+    budgets: Budgets,
     lifecycle: Lifecycle,
 ) -> std::io::Result<()> {
     let shutdown = lifecycle.stop;
@@ -640,6 +637,12 @@ pub async fn serve(
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
     let access_log = settings.access_log;
+    let Budgets {
+        permits,
+        streams,
+        request_bytes,
+        connections,
+    } = budgets;
     let buffered = buffered::BufferedBytesLayer::new(request_bytes);
     let kin = KinematicsServiceServer::new(GrpcService {
         service,
@@ -655,7 +658,7 @@ pub async fn serve(
     let kin = oversize::WireErrorStatuses(kin);
     // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to
     // listeners it binds) and their own count of open streams.
-    let incoming = TcpListenerStream::new(listener).map(|s| s.map(streams::GrpcConn::new));
+    let incoming = streams::incoming(listener, connections);
     let health_on_stop = health.clone();
     let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(
         access_log,

@@ -19,13 +19,38 @@ use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::TcpStream;
 
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_stream::Stream;
 use tokio_util::sync::{CancellationToken, DropGuard, WaitForCancellationFutureOwned};
 use tonic::Status;
 use tonic::transport::server::Connected;
 
-use crate::api::budget::ConnectionStreams;
+use crate::api::budget::{ConnectionSlots, ConnectionStreams, accept_error};
+
+/// The accepted connections of `listener`, each holding a slot of
+/// `connections`: an accepted connection is handed on once a slot is free,
+/// and until then nothing more is accepted (new clients wait in the kernel's
+/// backlog). Accepting first means an idle listener holds no slot. Accept
+/// errors are skipped or retried, never handed to the server (which would stop).
+pub fn incoming(
+    listener: tokio::net::TcpListener,
+    connections: ConnectionSlots,
+) -> impl Stream<Item = std::io::Result<GrpcConn>> {
+    futures_util::stream::unfold(
+        (listener, connections),
+        |(listener, connections)| async move {
+            loop {
+                match listener.accept().await {
+                    Ok((tcp, _peer)) => {
+                        let slot = connections.wait().await?;
+                        return Some((Ok(GrpcConn::new(tcp, slot)), (listener, connections)));
+                    }
+                    Err(e) => accept_error(e).await,
+                }
+            }
+        },
+    )
+}
 
 /// Replies of one stream queued for the client, beyond the one its task is
 /// holding: a client that does not read holds this little.
@@ -50,15 +75,22 @@ pub struct GrpcConn {
     tcp: TcpStream,
     info: GrpcConnInfo,
     closed: Pin<Box<WaitForCancellationFutureOwned>>,
+    /// Its slot of `--max-connections`, freed when the connection is dropped.
+    _slot: OwnedSemaphorePermit,
 }
 
 impl GrpcConn {
-    /// A newly accepted connection (TCP_NODELAY set).
-    pub fn new(tcp: TcpStream) -> GrpcConn {
+    /// A newly accepted connection (TCP_NODELAY set) holding `slot`.
+    pub fn new(tcp: TcpStream, slot: OwnedSemaphorePermit) -> GrpcConn {
         let _ = tcp.set_nodelay(true);
         let info = GrpcConnInfo::default();
         let closed = Box::pin(info.close.clone().cancelled_owned());
-        GrpcConn { tcp, info, closed }
+        GrpcConn {
+            tcp,
+            info,
+            closed,
+            _slot: slot,
+        }
     }
 
     /// `Err` once the connection is to be closed.
