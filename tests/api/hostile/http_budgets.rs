@@ -560,3 +560,29 @@ async fn connections_past_the_limit_wait_until_one_closes() {
     assert_eq!(robot, "puma560");
     drop(held_again);
 }
+
+/// The response byte budget refuses an answer that does not fit with 503
+/// `overloaded` + `Retry-After` (never a partial answer), while answers that
+/// fit are served as usual.
+#[tokio::test]
+async fn an_answer_over_the_response_budget_is_a_503_not_a_partial_answer() {
+    let app = spawn_app_with(|c| c.max_buffered_response_bytes = 1 << 20).await;
+    let batch = |n: usize| {
+        let configs: Vec<Vec<f64>> = (0..n).map(|i| vec![i as f64 * 1e-4; 6]).collect();
+        app.client
+            .post(format!("{}/v1/robots/puma560/fk/batch", app.http))
+            .json(&json!({ "configurations": configs }))
+            .send()
+    };
+    // About 6 MB of full poses: more than the whole 1 MiB budget.
+    let r = batch(10_000).await.unwrap();
+    assert_eq!(r.status(), 503);
+    assert_eq!(r.headers()["retry-after"], "1");
+    let p: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(p["type"], "urn:kinserve:problem:overloaded", "{p}");
+    // About 60 KB: fits, answered in full.
+    let r = batch(100).await.unwrap();
+    assert_eq!(r.status(), 200);
+    let body: serde_json::Value = r.json().await.unwrap();
+    assert_eq!(body["poses"].as_array().unwrap().len(), 100);
+}
