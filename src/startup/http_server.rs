@@ -147,7 +147,10 @@ impl Conn {
             req.extensions_mut().insert(streams.clone());
             let router = router.clone();
             async move {
-                let resp = router.oneshot(req).await;
+                let resp = router
+                    .oneshot(req)
+                    .await
+                    .map(crate::api::rest::hide_connect);
                 drop(busy);
                 resp
             }

@@ -330,3 +330,21 @@ async fn an_idle_stream_is_closed_with_1001() {
         other => panic!("expected a close frame, got {other:?}"),
     }
 }
+
+/// The stream route takes `CONNECT` (WebSockets over HTTP/2, RFC 8441), but
+/// `Allow` advertises only what the OpenAPI document describes.
+#[tokio::test]
+async fn allow_on_the_stream_route_lists_get_and_head_only() {
+    let app = spawn_app().await;
+    let url = format!("{}/v1/robots/puma560/fk/stream", app.http);
+    for method in [reqwest::Method::OPTIONS, reqwest::Method::POST] {
+        let r = app
+            .client
+            .request(method.clone(), &url)
+            .send()
+            .await
+            .unwrap();
+        let allow = r.headers()["allow"].to_str().unwrap().to_string();
+        assert_eq!(allow, "GET,HEAD", "{method}");
+    }
+}

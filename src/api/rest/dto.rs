@@ -69,8 +69,10 @@ pub struct StoreState {
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct ListParams {
-    /// Most robots to return: absent or 0 means 100; above 1000 means 1000.
-    pub page_size: Option<u32>,
+    /// Most robots to return: absent or 0 means 100; above 1000 means 1000
+    /// (AIP-158); negative is a 400. Any int64 is accepted, as documented.
+    #[param(minimum = 0)]
+    pub page_size: Option<i64>,
     /// `next_page_token` of the previous page; absent for the first page.
     pub page_token: Option<String>,
 }

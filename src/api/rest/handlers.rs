@@ -71,10 +71,19 @@ pub async fn list_robots(
     query: Result<Query<ListParams>, QueryRejection>,
 ) -> ApiResult<Json<RobotList>> {
     let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
-    let (page, next_page_token) = state.service.list_page(
-        params.page_size.unwrap_or(0),
-        params.page_token.as_deref().unwrap_or(""),
-    )?;
+    let page_size = match params.page_size.unwrap_or(0) {
+        n if n < 0 => {
+            return Err(Error::malformed_field(
+                "page_size",
+                "must be 0 (the default, 100) or more",
+            )
+            .into());
+        }
+        n => u32::try_from(n).unwrap_or(u32::MAX),
+    };
+    let (page, next_page_token) = state
+        .service
+        .list_page(page_size, params.page_token.as_deref().unwrap_or(""))?;
     let robots = page
         .into_iter()
         .map(|s| RobotSummaryDto {

@@ -450,6 +450,29 @@ fn cors(origins: &[String]) -> CorsLayer {
     }
 }
 
+/// `Allow` without `CONNECT`: the HTTP/2 WebSocket handshake (RFC 8441) is
+/// how `GET …/fk/stream` travels over HTTP/2, not an operation of its own
+/// (OpenAPI has no CONNECT), so it is not advertised. Applied by the server
+/// to every answer of the router (axum adds `Allow` outside any route layer).
+pub fn hide_connect<B>(mut resp: axum::http::Response<B>) -> axum::http::Response<B> {
+    let Some(allow) = resp
+        .headers()
+        .get(header::ALLOW)
+        .and_then(|v| v.to_str().ok())
+    else {
+        return resp;
+    };
+    let kept: Vec<&str> = allow
+        .split(',')
+        .map(str::trim)
+        .filter(|m| !m.eq_ignore_ascii_case("CONNECT"))
+        .collect();
+    if let Ok(v) = HeaderValue::from_str(&kept.join(",")) {
+        resp.headers_mut().insert(header::ALLOW, v);
+    }
+    resp
+}
+
 /// The complete REST router.
 pub fn router(state: AppState) -> Router {
     router_with(state, Router::new())
