@@ -195,6 +195,16 @@ pub fn channel<T>() -> (Replies<T>, Outbound<T>) {
 }
 
 impl<T> Replies<T> {
+    /// Queues a reply if there is room now; gives it back when the queue is
+    /// full (`Err(Some)`), `Err(None)` once the client is gone.
+    pub fn try_send(&self, reply: T) -> Result<(), Option<T>> {
+        match self.tx.try_send(Ok(reply)) {
+            Ok(()) => Ok(()),
+            Err(mpsc::error::TrySendError::Full(Ok(reply))) => Err(Some(reply)),
+            Err(_) => Err(None),
+        }
+    }
+
     /// Queues a reply; waits while the queue is full (the client reads
     /// slowly). `false` once the client is gone.
     pub async fn send(&self, reply: T) -> bool {
