@@ -482,54 +482,38 @@ async fn readyz_is_503_during_the_shutdown_grace_while_fk_is_served() {
 /// `--max-connections` bounds the open connections of both listeners
 /// together: with every slot held by idle clients, a new REST or gRPC client
 /// is not accepted (it waits in the kernel's backlog, nothing is refused) and
-/// is served as soon as one of them leaves.
+/// is served as soon as one of them leaves. The slots are filled with kept-alive
+/// HTTP/1.1 connections until one is not answered: that one is the client past
+/// the limit (the test client's own pooled connection may hold a slot too).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn connections_past_the_limit_wait_until_one_closes() {
+    const MAX: usize = 4;
     let app = spawn_app_with(|c| {
-        c.max_connections = 3;
+        c.max_connections = MAX;
         c.header_timeout = Duration::from_secs(120);
     })
     .await;
-    // Slot 1: the test client's pooled keep-alive connection.
-    assert_eq!(app.get("/healthz").await.status(), 200);
     let addr = app.http.trim_start_matches("http://").to_string();
-    let grpc_addr = app.grpc.trim_start_matches("http://").to_string();
-    // Slots 2 and 3: one idle connection on each listener.
-    let held_http = TcpStream::connect(&addr).await.unwrap();
-    let held_grpc = TcpStream::connect(&grpc_addr).await.unwrap();
-    tokio::time::sleep(Duration::from_millis(300)).await;
-
-    let fresh = reqwest::Client::builder()
-        .pool_max_idle_per_host(0)
-        .build()
-        .unwrap();
-    let url = format!("{}/v1/robots/puma560/fk", app.http);
-    let rest = tokio::spawn(async move {
-        fresh
-            .post(url)
-            .json(&json!({"joints": [0, 0, 0, 0, 0, 0]}))
-            .send()
+    let mut held = Vec::new();
+    let mut waiting = loop {
+        let mut s = TcpStream::connect(&addr).await.unwrap();
+        s.write_all(b"GET /healthz HTTP/1.1\r\nhost: t\r\n\r\n")
             .await
-            .map(|r| r.status().as_u16())
-    });
-    tokio::time::sleep(Duration::from_millis(1500)).await;
-    assert!(
-        !rest.is_finished(),
-        "a client past the limit is not served while the slots are held"
-    );
-    drop(held_http);
-    let status = tokio::time::timeout(Duration::from_secs(20), rest)
-        .await
-        .expect("served once a slot is free")
-        .unwrap()
-        .unwrap();
-    assert_eq!(status, 200);
+            .unwrap();
+        match read_status(&mut s, Duration::from_secs(3)).await {
+            Some(200) => held.push(s),
+            None => break s,
+            other => panic!("unexpected answer {other:?}"),
+        }
+        assert!(held.len() <= MAX, "more connections served than slots");
+    };
+    assert!(held.len() + 2 >= MAX, "{} held", held.len());
+    drop(held.pop());
+    let status = read_status(&mut waiting, Duration::from_secs(20)).await;
+    assert_eq!(status, Some(200), "served once a slot is free");
+    held.push(waiting);
 
-    // The REST client's connection closed after its answer: fill its slot
-    // again, so that a new gRPC client waits too.
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    let held_again = TcpStream::connect(&addr).await.unwrap();
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    // Every slot is taken again: a new gRPC client waits too.
     let grpc = app.grpc.clone();
     let call = tokio::spawn(async move {
         let mut client =
@@ -551,14 +535,13 @@ async fn connections_past_the_limit_wait_until_one_closes() {
         !call.is_finished(),
         "a gRPC client past the limit waits too"
     );
-    drop(held_grpc);
+    drop(held.pop());
     let robot = tokio::time::timeout(Duration::from_secs(20), call)
         .await
         .expect("served once a slot is free")
         .unwrap()
         .unwrap();
     assert_eq!(robot, "puma560");
-    drop(held_again);
 }
 
 /// The response byte budget refuses an answer that does not fit with 503
