@@ -1,21 +1,14 @@
 //! Built-in robots ship inside the binary: the CLI and the server find them
 //! from any working directory, and `--robots-dir` adds or overrides robots.
 
-use std::process::Command;
-
 use kinserve::model::{ModelLimits, load_robot_file};
 use kinserve::registry::builtin;
 use kinserve_testkit::RobotExt;
 
+use crate::helpers::{kinserve_elsewhere, stdout_json};
+
 fn repo_robots() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots")
-}
-
-/// `kinserve` run in an empty temporary directory, with no robots dir in its environment.
-fn kinserve_elsewhere(cwd: &std::path::Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_kinserve"));
-    c.current_dir(cwd).env_remove("KINSERVE_ROBOTS_DIR");
-    c
 }
 
 #[test]
@@ -52,12 +45,7 @@ fn fk_finds_a_built_in_robot_from_any_directory() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stdout_json(&out);
     let robot = load_robot_file(&repo_robots().join("puma560.json")).unwrap();
     let p = robot
         .fk_unchecked(&[0.1, 0.2, 0.3, 0.4, 0.5, 0.6])

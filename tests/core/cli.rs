@@ -1,13 +1,7 @@
 //! The `kinserve` command line: `fk`, `validate` and `bench`.
 
+use crate::helpers::{assert_ok, kinserve, stdout_json};
 use kinserve_testkit::RobotExt;
-use std::process::Command;
-
-fn kinserve() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_kinserve"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
 
 #[test]
 fn fk_prints_the_rest_json_for_a_built_in() {
@@ -15,12 +9,7 @@ fn fk_prints_the_rest_json_for_a_built_in() {
         .args(["fk", "--robot", "puma560", "--joints", "0,0,0,0,0,0"])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stdout_json(&out);
     assert_eq!(v["robot"], "puma560");
     assert_eq!(v["length_unit"], "m");
     let robot =
@@ -46,12 +35,7 @@ fn fk_with_degrees_frames_and_a_model_file() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stdout_json(&out);
     // a1 = 0.4, a2 = 0.3: x = a1 c1 + a2 c12 = 0.3, y = a1 s1 + a2 s12 = 0.4.
     assert!((v["pose"]["position"][0].as_f64().unwrap() - 0.3).abs() < 1e-12);
     assert!((v["pose"]["position"][1].as_f64().unwrap() - 0.4).abs() < 1e-12);
@@ -90,11 +74,7 @@ fn validate_passes_every_robot_file_and_reports_bad_ones_by_field() {
         .map(|p| p.display().to_string())
         .collect();
     let out = kinserve().arg("validate").args(&files).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
 
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.json");
@@ -121,12 +101,7 @@ fn closed_form_prints_the_rest_json_and_each_rendering() {
         .args(["closed-form", "--robot", "planar_2dof"])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stdout_json(&out);
     assert_eq!(v["transform"]["text"][0][3], "a1*c1 + a2*c12");
     assert_eq!(v["symbols"]["a2"], 0.3);
     let text = kinserve()
@@ -167,11 +142,7 @@ fn urdf_prints_the_document_and_errors_exit_non_zero() {
         .args(["urdf", "--robot", "alpha_ii"])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let robot =
         kinserve::model::load_robot_file(std::path::Path::new("robots/alpha_ii.json")).unwrap();
     assert_eq!(
@@ -199,12 +170,7 @@ fn bench_prints_positive_finite_figures_and_the_kernel() {
             .args(["--batch", "64", "--json"])
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let v = stdout_json(&out);
         assert!(v["robot"] == "puma560" || v["robot"] == "panda", "{v}");
         let kernels: Vec<&str> = kinserve::kinematics::Kernel::ALL
             .iter()

@@ -3,6 +3,7 @@ mod builtins;
 mod cli;
 mod closed_forms;
 mod fuzz_corpus;
+mod helpers;
 mod ik;
 mod ik_requests;
 mod jacobian;

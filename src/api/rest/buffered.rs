@@ -75,11 +75,7 @@ pub async fn read_body(
     if !read_ahead(&req) {
         return Ok((req, None));
     }
-    let limit = if req.uri().path().ends_with("/batch") {
-        state.settings.max_batch_body_bytes
-    } else {
-        state.settings.max_body_bytes
-    };
+    let limit = body_limit(req.uri().path(), &state.settings);
     let declared = req
         .headers()
         .get(header::CONTENT_LENGTH)
@@ -147,9 +143,21 @@ fn stalled(idle: std::time::Duration, state: &AppState) -> Error {
     }
 }
 
-fn unreadable(e: &axum::Error, limit: usize) -> Error {
-    let over =
-        std::error::Error::source(e).is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
+/// The largest body a route takes: the batch limit on `…/batch` routes, the
+/// body limit elsewhere.
+pub(super) fn body_limit(path: &str, settings: &super::RestSettings) -> usize {
+    if path.ends_with("/batch") {
+        settings.max_batch_body_bytes
+    } else {
+        settings.max_body_bytes
+    }
+}
+
+/// A body that could not be read: 413 when it was over `limit`, else 400.
+pub(super) fn unreadable(e: &axum::Error, limit: usize) -> Error {
+    let over = std::error::Error::source(e)
+        .is_some_and(|s| s.is::<http_body_util::LengthLimitError>())
+        || e.to_string().contains("length limit");
     if over {
         return too_large(limit);
     }

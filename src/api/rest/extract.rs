@@ -60,29 +60,10 @@ impl<T: DeserializeOwned> JsonBody<T> {
                 });
             }
         }
-        let limit = if req.uri().path().ends_with("/batch") {
-            state.settings.max_batch_body_bytes
-        } else {
-            state.settings.max_body_bytes
-        };
+        let limit = super::buffered::body_limit(req.uri().path(), &state.settings);
         let bytes = axum::body::to_bytes(req.into_body(), limit)
             .await
-            .map_err(|e| {
-                let too_large = std::error::Error::source(&e)
-                    .is_some_and(|s| s.is::<http_body_util::LengthLimitError>())
-                    || e.to_string().contains("length limit");
-                if too_large {
-                    Error::TooLarge {
-                        detail: format!("request body is over the limit of {limit} bytes"),
-                        field: None,
-                    }
-                } else {
-                    Error::Malformed {
-                        detail: format!("could not read the request body: {e}"),
-                        violations: Vec::new(),
-                    }
-                }
-            })?;
+            .map_err(|e| super::buffered::unreadable(&e, limit))?;
         Ok(JsonBody(parse_object(&bytes)?))
     }
 }
