@@ -15,6 +15,9 @@
 //! most [`FRAME_BYTES`], each marking progress on the connection (see
 //! [`super::conn`]), so a client that takes nothing is found out even on
 //! HTTP/2, where flow control stops a stream without any write blocking.
+//! A large FK batch answer is produced a frame at a time (see
+//! [`super::streamed`]) and counts what its [`super::streamed::Holds`]
+//! extension says (its poses and what may be in flight), not its JSON size.
 
 use std::pin::Pin;
 use std::sync::Arc;
@@ -175,10 +178,15 @@ pub fn hold_response(
     state: &AppState,
     conn: Option<Arc<ConnActivity>>,
 ) -> Response {
-    let hint = resp.body().size_hint();
-    let size = hint.exact().unwrap_or(hint.lower());
-    let Ok(size) = usize::try_from(size) else {
-        return resp;
+    let size = match resp.extensions().get::<super::streamed::Holds>() {
+        Some(holds) => holds.0,
+        None => {
+            let hint = resp.body().size_hint();
+            let Ok(size) = usize::try_from(hint.exact().unwrap_or(hint.lower())) else {
+                return resp;
+            };
+            size
+        }
     };
     if size < UNCOUNTED_BYTES {
         return resp;

@@ -350,14 +350,13 @@ pub async fn fk_batch(
         .service
         .fk_batch(robot, &req.configurations, &req.options())?;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
-    json_response(&FkBatchResponse {
-        robot: robot.name(),
-        length_unit: robot.length_unit(),
-        poses: FormattedPoses {
-            format: req.pose_format,
-            poses: &poses,
-        },
-    })
+    // Large answers are written a frame at a time as the connection takes them.
+    Ok(super::streamed::batch_answer(
+        robot.name(),
+        robot.length_unit(),
+        req.pose_format,
+        poses,
+    )?)
 }
 
 /// Unknown route: 404 problem.

@@ -10,6 +10,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod streamed;
 mod strict;
 mod velocity;
 mod ws;

@@ -1,0 +1,266 @@
+//! Large FK batch answers written as the connection takes them.
+//!
+//! A batch answer of [`STREAM_FROM_BYTES`] or more (by estimate) is not
+//! serialised whole: the poses (96 bytes each) are kept and their JSON is
+//! produced one frame of about [`FRAME_BYTES`] at a time, only when the
+//! connection asks for the next frame. A client that reads nothing therefore
+//! holds the computed poses and one frame (plus what hyper and the kernel
+//! buffer), not a multi-megabyte JSON text; the bytes it holds are counted
+//! against the response byte budget through [`Holds`]. The answer goes out
+//! without `Content-Length` (HTTP/1.1 chunked, or HTTP/2 DATA frames), and
+//! its bytes are exactly what serialising the whole [`FkBatchResponse`] gives.
+//!
+//! Owns only the body; which answers stream is the handler's choice. Depends
+//! on the DTOs and [`crate::api::pose_format`], nothing above the adapter.
+
+use std::pin::Pin;
+use std::task::{Context, Poll};
+
+use axum::body::{Body, Bytes, HttpBody};
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use http_body::{Frame, SizeHint};
+
+use super::dto::FkBatchResponse;
+use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
+use crate::error::Error;
+use crate::kinematics::Transform;
+
+/// Largest frame of a streamed answer, in bytes: the response budget's frame
+/// size, so frames are handed on whole.
+pub const FRAME_BYTES: usize = super::buffered::FRAME_BYTES;
+
+/// Room kept in a frame for one more pose (a `full` pose is at most about
+/// 700 bytes), in bytes.
+const POSE_ROOM: usize = 1024;
+
+/// Answers estimated at this many bytes or more are streamed.
+pub const STREAM_FROM_BYTES: usize = 64 << 10;
+
+/// What a streamed answer may have produced and not yet seen written, in
+/// bytes: hyper's HTTP/1 write buffer limit (its default `max_buf_size`,
+/// 8 KiB + 100 × 4 KiB) and the frame being handed over.
+const IN_FLIGHT_BYTES: usize = 8192 + 4096 * 100 + FRAME_BYTES;
+
+/// The memory a streamed answer keeps until its last frame is taken, in
+/// bytes: a response extension read by the response byte budget.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Holds(pub usize);
+
+/// A generous estimate of the JSON size of `n` poses in `format`, in bytes
+/// (17 significant digits per number).
+pub fn estimated_bytes(format: PoseFormat, n: usize) -> usize {
+    let per_pose = match format {
+        PoseFormat::Full => 720,
+        PoseFormat::Matrix => 12 * 24,
+        PoseFormat::Position => 3 * 24,
+    };
+    n.saturating_mul(per_pose)
+}
+
+/// The 200 answer to a batch: serialised at once when small, streamed (see
+/// the module documentation) when [`estimated_bytes`] reaches
+/// [`STREAM_FROM_BYTES`].
+pub fn batch_answer(
+    robot: &str,
+    length_unit: crate::model::LengthUnit,
+    format: PoseFormat,
+    poses: Vec<Transform>,
+) -> Result<Response, Error> {
+    let whole = FkBatchResponse {
+        robot,
+        length_unit,
+        poses: FormattedPoses {
+            format,
+            poses: &poses,
+        },
+    };
+    if estimated_bytes(format, poses.len()) < STREAM_FROM_BYTES {
+        return json_bytes(&whole, 1024).map(json_answer);
+    }
+    let empty = FkBatchResponse {
+        poses: FormattedPoses { format, poses: &[] },
+        ..whole
+    };
+    let shell = json_bytes(&empty, 256)?;
+    // `poses` is the last field: the shell ends with `[]}`; the head keeps `[`.
+    let Some(head) = shell.as_slice().strip_suffix(b"]}".as_slice()) else {
+        return Err(internal("the batch answer does not end with its poses"));
+    };
+    let holds = poses.len() * std::mem::size_of::<Transform>() + IN_FLIGHT_BYTES;
+    let body = PosesBody {
+        head: Some(Bytes::copy_from_slice(head)),
+        poses,
+        next: 0,
+        format,
+        done: false,
+    };
+    let mut resp = json_answer(Body::new(body));
+    resp.extensions_mut().insert(Holds(holds));
+    Ok(resp)
+}
+
+fn internal(detail: &str) -> Error {
+    Error::Internal {
+        detail: detail.into(),
+    }
+}
+
+/// `value` as JSON, in a buffer of `capacity` bytes to start with.
+fn json_bytes<T: serde::Serialize>(value: &T, capacity: usize) -> Result<Vec<u8>, Error> {
+    let mut bytes = Vec::with_capacity(capacity);
+    serde_json::to_writer(&mut bytes, value).map_err(|e| Error::Internal {
+        detail: e.to_string(),
+    })?;
+    Ok(bytes)
+}
+
+fn json_answer(body: impl Into<Body>) -> Response {
+    (
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        )],
+        body.into(),
+    )
+        .into_response()
+}
+
+/// The body of a streamed batch answer: the answer's head (`{…,"poses":[`),
+/// then the poses a frame at a time, then `]}`.
+struct PosesBody {
+    head: Option<Bytes>,
+    poses: Vec<Transform>,
+    next: usize,
+    format: PoseFormat,
+    done: bool,
+}
+
+impl PosesBody {
+    /// The next frame: the head (first time), poses up to [`FRAME_BYTES`],
+    /// and the closing `]}` after the last pose.
+    fn frame(&mut self) -> Result<Bytes, serde_json::Error> {
+        let mut buf = Vec::with_capacity(FRAME_BYTES);
+        if let Some(head) = self.head.take() {
+            buf.extend_from_slice(&head);
+        }
+        while buf.len() + POSE_ROOM <= FRAME_BYTES {
+            let Some(pose) = self.poses.get(self.next) else {
+                break;
+            };
+            if self.next > 0 {
+                buf.push(b',');
+            }
+            serde_json::to_writer(&mut buf, &FormattedPose::new(self.format, *pose))?;
+            self.next += 1;
+        }
+        if self.next >= self.poses.len() {
+            buf.extend_from_slice(b"]}");
+            self.done = true;
+            self.poses = Vec::new();
+        }
+        Ok(Bytes::from(buf))
+    }
+}
+
+impl HttpBody for PosesBody {
+    type Data = Bytes;
+    type Error = axum::Error;
+
+    fn poll_frame(
+        self: Pin<&mut Self>,
+        _cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
+        let this = self.get_mut();
+        if this.done {
+            return Poll::Ready(None);
+        }
+        Poll::Ready(Some(
+            this.frame().map(Frame::data).map_err(axum::Error::new),
+        ))
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.done
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        // At least the rest of the poses' brackets and the closing `]}`:
+        // never an exact length, so no `Content-Length` is sent.
+        let left = self.poses.len().saturating_sub(self.next) as u64;
+        let mut hint = SizeHint::new();
+        hint.set_lower(if self.done { 0 } else { 2 + 2 * left });
+        hint
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::LengthUnit;
+
+    fn poses(n: usize) -> Vec<Transform> {
+        (0..n)
+            .map(|i| {
+                let x = i as f64 * 1e-3;
+                Transform::rot_z(0.1 + x).compose(&Transform::translation(x, 0.3 - x, 1.0 / 3.0))
+            })
+            .collect()
+    }
+
+    fn whole(format: PoseFormat, poses: &[Transform]) -> Vec<u8> {
+        serde_json::to_vec(&FkBatchResponse {
+            robot: "puma560",
+            length_unit: LengthUnit::M,
+            poses: FormattedPoses { format, poses },
+        })
+        .unwrap()
+    }
+
+    async fn collected(resp: Response) -> (Option<Holds>, Vec<Vec<u8>>) {
+        let holds = resp.extensions().get::<Holds>().copied();
+        let mut body = resp.into_body();
+        let mut frames = Vec::new();
+        while let Some(f) = http_body_util::BodyExt::frame(&mut body).await {
+            frames.push(f.unwrap().into_data().unwrap().to_vec());
+        }
+        (holds, frames)
+    }
+
+    #[tokio::test]
+    async fn a_streamed_answer_is_the_whole_answer_byte_for_byte() {
+        for format in [PoseFormat::Full, PoseFormat::Matrix, PoseFormat::Position] {
+            for n in [0, 1, 2, 99, 1000, 2345] {
+                let ps = poses(n);
+                let want = whole(format, &ps);
+                let resp = batch_answer("puma560", LengthUnit::M, format, ps).unwrap();
+                let streamed = estimated_bytes(format, n) >= STREAM_FROM_BYTES;
+                assert_eq!(resp.body().size_hint().exact().is_none(), streamed);
+                let (holds, frames) = collected(resp).await;
+                assert_eq!(holds.is_some(), streamed, "{format:?} × {n}");
+                let got: Vec<u8> = frames.iter().flatten().copied().collect();
+                assert!(
+                    got == want,
+                    "{format:?} × {n}: {} bytes streamed, {} whole",
+                    got.len(),
+                    want.len()
+                );
+                if streamed && want.len() > FRAME_BYTES {
+                    assert!(frames.len() > 1, "{format:?} × {n}: one frame");
+                    for f in &frames {
+                        assert!(f.len() <= FRAME_BYTES, "frame of {} bytes", f.len());
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_estimate_is_not_below_the_real_size_of_full_poses() {
+        let ps = poses(500);
+        for format in [PoseFormat::Full, PoseFormat::Matrix, PoseFormat::Position] {
+            let real = whole(format, &ps).len();
+            assert!(estimated_bytes(format, 500) >= real, "{format:?}: {real}");
+        }
+    }
+}
