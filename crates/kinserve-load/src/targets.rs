@@ -139,11 +139,44 @@ fn grpc_poses(
     }
 }
 
-/// The numbers of a WebSocket reply's pose: an array (compact) or the matrix of an object.
-fn json_pose(pose: &serde_json::Value) -> Vec<f64> {
-    match pose.as_array() {
-        Some(a) => a.iter().filter_map(|x| x.as_f64()).collect(),
-        None => json_matrix16(pose),
+/// A WebSocket FK message.
+#[derive(serde::Serialize)]
+struct WsMessage<'a> {
+    id: u64,
+    joints: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose_format: Option<&'static str>,
+}
+
+/// A WebSocket reply: its id and the pose (typed by the format asked for)
+/// or the error; other fields are skipped.
+#[derive(serde::Deserialize)]
+struct WsReply<P> {
+    id: Option<u64>,
+    pose: Option<P>,
+    error: Option<WsError>,
+}
+
+#[derive(serde::Deserialize)]
+struct WsError {
+    status: Option<u16>,
+}
+
+/// A WebSocket reply as the worker sees it (typed decoding: cheap on the
+/// client, which shares the machine with the server).
+fn decode_ws(text: &str, format: PoseFormat) -> Reply {
+    let decoded = match format {
+        PoseFormat::Full => serde_json::from_str::<WsReply<MatrixOnly>>(text)
+            .map(|r| (r.id, r.pose.map(|p| flat(&p.matrix)), r.error)),
+        _ => serde_json::from_str::<WsReply<Vec<f64>>>(text).map(|r| (r.id, r.pose, r.error)),
+    };
+    match decoded {
+        Ok((id, Some(pose), _)) => Reply::Pose(id.unwrap_or(u64::MAX), pose),
+        Ok((id, None, error)) => {
+            let status = error.and_then(|e| e.status).unwrap_or(0);
+            Reply::Error(id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
+        }
+        Err(_) => Reply::Closed("decode".into()),
     }
 }
 
@@ -165,18 +198,6 @@ struct BatchReply {
 
 fn flat(m: &[[f64; 4]; 4]) -> Vec<f64> {
     m.iter().flatten().copied().collect()
-}
-
-fn json_matrix16(pose: &serde_json::Value) -> Vec<f64> {
-    pose["matrix"]
-        .as_array()
-        .map(|rows| {
-            rows.iter()
-                .filter_map(|r| r.as_array())
-                .flat_map(|r| r.iter().filter_map(|x| x.as_f64()))
-                .collect()
-        })
-        .unwrap_or_default()
 }
 
 /// Runs one worker until the measurement window closes.
@@ -435,32 +456,25 @@ async fn stream_worker(
             let pose_format = args.pose_format.json_name();
             tokio::spawn(async move {
                 while let Some((id, q)) = rx.recv().await {
-                    let mut msg = serde_json::json!({ "id": id, "joints": q });
-                    if let Some(f) = pose_format {
-                        msg["pose_format"] = f.into();
-                    }
-                    let msg = msg.to_string();
+                    let msg = WsMessage {
+                        id,
+                        joints: &q,
+                        pose_format,
+                    };
+                    let Ok(msg) = serde_json::to_string(&msg) else {
+                        return;
+                    };
                     if sink.send(Message::Text(msg.into())).await.is_err() {
                         return;
                     }
                 }
                 let _ = sink.close().await;
             });
+            let format = args.pose_format;
             tokio::spawn(async move {
                 while let Some(m) = stream.next().await {
                     let reply = match m {
-                        Ok(Message::Text(t)) => match serde_json::from_str::<serde_json::Value>(&t)
-                        {
-                            Ok(v) => {
-                                let id = v["id"].as_u64().unwrap_or(u64::MAX);
-                                if v.get("pose").is_some() {
-                                    Reply::Pose(id, json_pose(&v["pose"]))
-                                } else {
-                                    Reply::Error(id, format!("ws_error_{}", v["error"]["status"]))
-                                }
-                            }
-                            Err(_) => Reply::Closed("decode".into()),
-                        },
+                        Ok(Message::Text(t)) => decode_ws(&t, format),
                         Ok(Message::Close(_)) => Reply::Closed("ws_closed".into()),
                         Ok(_) => continue,
                         Err(_) => Reply::Closed("transport".into()),
