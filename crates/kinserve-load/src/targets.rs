@@ -429,6 +429,137 @@ enum Reply {
     Closed(String),
 }
 
+/// Where a stream worker's messages go: the WebSocket writer task, or
+/// straight into the gRPC request stream.
+enum Outbound {
+    Ws(tokio::sync::mpsc::Sender<(u64, Vec<f64>)>),
+    Grpc {
+        tx: tokio::sync::mpsc::Sender<pb::StreamForwardKinematicsRequest>,
+        robot: String,
+        options: Option<pb::FkOptions>,
+    },
+}
+
+impl Outbound {
+    /// Queues message `id` with joints `q`; false when the stream is gone.
+    async fn send(&self, id: u64, q: Vec<f64>) -> bool {
+        match self {
+            Outbound::Ws(tx) => tx.send((id, q)).await.is_ok(),
+            Outbound::Grpc { tx, robot, options } => {
+                let req = pb::StreamForwardKinematicsRequest {
+                    id,
+                    robot: robot.clone(),
+                    joints: q,
+                    options: *options,
+                    ..Default::default()
+                };
+                tx.send(req).await.is_ok()
+            }
+        }
+    }
+}
+
+type Replies = tokio::sync::mpsc::Receiver<Reply>;
+
+/// A WebSocket stream: a writer task that writes every message ready before
+/// flushing, and a reader task decoding replies.
+async fn ws_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), String> {
+    let url = format!("ws://{}/v1/robots/{}/fk/stream", args.http_addr, args.robot);
+    let (ws, _) = tokio_tungstenite::connect_async(url)
+        .await
+        .map_err(|e| format!("ws connect: {e}"))?;
+    let (mut sink, mut stream) = ws.split();
+    let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
+    let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+    let pose_format = args.pose_format.json_name();
+    let text = move |id: u64, q: &[f64]| {
+        let msg = WsMessage {
+            id,
+            joints: q,
+            pose_format,
+        };
+        serde_json::to_string(&msg).map(|m| Message::Text(m.into()))
+    };
+    tokio::spawn(async move {
+        while let Some((id, q)) = rx.recv().await {
+            let Ok(first) = text(id, &q) else { return };
+            if sink.feed(first).await.is_err() {
+                return;
+            }
+            while let Ok((id, q)) = rx.try_recv() {
+                let Ok(next) = text(id, &q) else { return };
+                if sink.feed(next).await.is_err() {
+                    return;
+                }
+            }
+            if sink.flush().await.is_err() {
+                return;
+            }
+        }
+        let _ = sink.close().await;
+    });
+    let format = args.pose_format;
+    tokio::spawn(async move {
+        while let Some(m) = stream.next().await {
+            let reply = match m {
+                Ok(Message::Text(t)) => decode_ws(&t, format),
+                Ok(Message::Close(_)) => Reply::Closed("ws_closed".into()),
+                Ok(_) => continue,
+                Err(_) => Reply::Closed("transport".into()),
+            };
+            let stop = matches!(reply, Reply::Closed(_));
+            if rtx.send(reply).await.is_err() || stop {
+                return;
+            }
+        }
+    });
+    Ok((Outbound::Ws(tx), rrx))
+}
+
+/// A gRPC bidirectional stream: the worker writes requests into it directly;
+/// a reader task turns answers into replies.
+async fn grpc_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), String> {
+    let mut client = grpc_client(&args.grpc_addr).await?;
+    let (req_tx, req_rx) =
+        tokio::sync::mpsc::channel::<pb::StreamForwardKinematicsRequest>(args.pipeline);
+    let response = client
+        .stream_forward_kinematics(tokio_stream::wrappers::ReceiverStream::new(req_rx))
+        .await
+        .map_err(|s| format!("grpc stream: {s}"))?;
+    let mut inbound = response.into_inner();
+    let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+    tokio::spawn(async move {
+        loop {
+            let reply = match inbound.message().await {
+                Ok(Some(m)) => match m.result {
+                    Some(pb::stream_forward_kinematics_response::Result::Pose(p)) => {
+                        Reply::Pose(m.id, p.matrix)
+                    }
+                    Some(pb::stream_forward_kinematics_response::Result::PackedPose(p)) => {
+                        Reply::Pose(m.id, p.values)
+                    }
+                    Some(pb::stream_forward_kinematics_response::Result::Error(s)) => {
+                        Reply::Error(m.id, format!("stream_error_{}", s.code))
+                    }
+                    None => Reply::Error(m.id, "empty_result".into()),
+                },
+                Ok(None) => Reply::Closed("stream_closed".into()),
+                Err(s) => Reply::Closed(format!("grpc_{:?}", s.code())),
+            };
+            let stop = matches!(reply, Reply::Closed(_));
+            if rtx.send(reply).await.is_err() || stop {
+                return;
+            }
+        }
+    });
+    let outbound = Outbound::Grpc {
+        tx: req_tx,
+        robot: args.robot.clone(),
+        options: args.pose_format.pb_options(),
+    };
+    Ok((outbound, rrx))
+}
+
 /// Pipelined streams (WebSocket, gRPC bidi): up to `--pipeline` messages in flight.
 async fn stream_worker(
     plan: &Plan,
@@ -443,103 +574,9 @@ async fn stream_worker(
     let mut next_id = 0u64;
     let mut count = 0u64;
 
-    // Transport: a sender and a receiver of replies.
-    let (send_tx, mut reply_rx) = match args.target {
-        Target::Ws => {
-            let url = format!("ws://{}/v1/robots/{}/fk/stream", args.http_addr, args.robot);
-            let (ws, _) = tokio_tungstenite::connect_async(url)
-                .await
-                .map_err(|e| format!("ws connect: {e}"))?;
-            let (mut sink, mut stream) = ws.split();
-            let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
-            let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
-            let pose_format = args.pose_format.json_name();
-            tokio::spawn(async move {
-                while let Some((id, q)) = rx.recv().await {
-                    let msg = WsMessage {
-                        id,
-                        joints: &q,
-                        pose_format,
-                    };
-                    let Ok(msg) = serde_json::to_string(&msg) else {
-                        return;
-                    };
-                    if sink.send(Message::Text(msg.into())).await.is_err() {
-                        return;
-                    }
-                }
-                let _ = sink.close().await;
-            });
-            let format = args.pose_format;
-            tokio::spawn(async move {
-                while let Some(m) = stream.next().await {
-                    let reply = match m {
-                        Ok(Message::Text(t)) => decode_ws(&t, format),
-                        Ok(Message::Close(_)) => Reply::Closed("ws_closed".into()),
-                        Ok(_) => continue,
-                        Err(_) => Reply::Closed("transport".into()),
-                    };
-                    let stop = matches!(reply, Reply::Closed(_));
-                    if rtx.send(reply).await.is_err() || stop {
-                        return;
-                    }
-                }
-            });
-            (tx, rrx)
-        }
-        _ => {
-            let mut client = grpc_client(&args.grpc_addr).await?;
-            let (tx, mut rx) = tokio::sync::mpsc::channel::<(u64, Vec<f64>)>(args.pipeline);
-            let robot = args.robot.clone();
-            let options = args.pose_format.pb_options();
-            let (req_tx, req_rx) =
-                tokio::sync::mpsc::channel::<pb::StreamForwardKinematicsRequest>(args.pipeline);
-            tokio::spawn(async move {
-                while let Some((id, joints)) = rx.recv().await {
-                    let req = pb::StreamForwardKinematicsRequest {
-                        id,
-                        robot: robot.clone(),
-                        joints,
-                        options,
-                        ..Default::default()
-                    };
-                    if req_tx.send(req).await.is_err() {
-                        return;
-                    }
-                }
-            });
-            let response = client
-                .stream_forward_kinematics(tokio_stream::wrappers::ReceiverStream::new(req_rx))
-                .await
-                .map_err(|s| format!("grpc stream: {s}"))?;
-            let mut inbound = response.into_inner();
-            let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
-            tokio::spawn(async move {
-                loop {
-                    let reply = match inbound.message().await {
-                        Ok(Some(m)) => match m.result {
-                            Some(pb::stream_forward_kinematics_response::Result::Pose(p)) => {
-                                Reply::Pose(m.id, p.matrix)
-                            }
-                            Some(pb::stream_forward_kinematics_response::Result::PackedPose(p)) => {
-                                Reply::Pose(m.id, p.values)
-                            }
-                            Some(pb::stream_forward_kinematics_response::Result::Error(s)) => {
-                                Reply::Error(m.id, format!("stream_error_{}", s.code))
-                            }
-                            None => Reply::Error(m.id, "empty_result".into()),
-                        },
-                        Ok(None) => Reply::Closed("stream_closed".into()),
-                        Err(s) => Reply::Closed(format!("grpc_{:?}", s.code())),
-                    };
-                    let stop = matches!(reply, Reply::Closed(_));
-                    if rtx.send(reply).await.is_err() || stop {
-                        return;
-                    }
-                }
-            });
-            (tx, rrx)
-        }
+    let (outbound, mut reply_rx) = match args.target {
+        Target::Ws => ws_transport(args).await?,
+        _ => grpc_transport(args).await?,
     };
 
     loop {
@@ -557,7 +594,12 @@ async fn stream_worker(
             if measuring {
                 tally.sent += 1;
             }
-            if send_tx.send((id, q.clone())).await.is_err() {
+            // The joints are kept only to verify the answer.
+            let (sent, kept) = match args.verify {
+                true => (q.clone(), q),
+                false => (q, Vec::new()),
+            };
+            if !outbound.send(id, sent).await {
                 tally.error("send_failed");
                 return Ok(());
             }
@@ -565,7 +607,7 @@ async fn stream_worker(
                 id,
                 t0,
                 measuring,
-                q,
+                q: kept,
             });
             continue;
         }
