@@ -634,41 +634,51 @@ async fn stream_worker(
             tally.error("unexpected_reply");
             return Ok(());
         };
-        let latency = head.t0.elapsed();
-        match reply {
-            Reply::Closed(kind) => {
-                if head.measuring {
-                    tally.error(kind);
-                }
-                return Ok(());
+        if !settle(plan, head, reply, tally) {
+            return Ok(());
+        }
+    }
+}
+
+/// Counts `reply` to the oldest message in flight, `head`; false when the
+/// stream is over.
+fn settle(plan: &Plan, head: InFlight, reply: Reply, tally: &mut Tally) -> bool {
+    let latency = head.t0.elapsed();
+    match reply {
+        Reply::Closed(kind) => {
+            if head.measuring {
+                tally.error(kind);
             }
-            Reply::Error(id, kind) => {
-                if head.measuring {
-                    tally.answered += 1;
-                    tally.error(if id == head.id {
-                        kind
-                    } else {
-                        "out_of_order".into()
-                    });
-                }
+            return false;
+        }
+        Reply::Error(id, kind) => {
+            if head.measuring {
+                tally.answered += 1;
+                tally.error(if id == head.id {
+                    kind
+                } else {
+                    "out_of_order".into()
+                });
             }
-            Reply::Pose(id, m) => {
-                if head.measuring {
-                    tally.answered += 1;
-                    tally.record(latency);
-                    if id != head.id {
-                        tally.error("out_of_order");
-                        continue;
-                    }
-                    tally.poses += 1;
-                    if plan.args.verify
-                        && let Some(robot) = plan.robot.as_ref()
-                        && !verify_pose(robot, &head.q, &m, plan.args.pose_format)
-                    {
-                        tally.error("verify");
-                    }
-                }
+        }
+        Reply::Pose(id, m) => {
+            if !head.measuring {
+                return true;
+            }
+            tally.answered += 1;
+            tally.record(latency);
+            if id != head.id {
+                tally.error("out_of_order");
+                return true;
+            }
+            tally.poses += 1;
+            if plan.args.verify
+                && let Some(robot) = plan.robot.as_ref()
+                && !verify_pose(robot, &head.q, &m, plan.args.pose_format)
+            {
+                tally.error("verify");
             }
         }
     }
+    true
 }
