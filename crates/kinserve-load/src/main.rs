@@ -1,6 +1,12 @@
 //! `kinserve-load`: load generator for kinserve (the library of this crate).
 
 use clap::Parser;
+
+/// The server's allocator: the load generator shares the machine with the
+/// server, so its per-message allocations should cost as little.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use kinserve_load::{LoadArgs, Report, run};
 
 #[tokio::main]
