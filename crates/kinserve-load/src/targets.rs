@@ -39,10 +39,11 @@ impl Schedule {
         }
     }
 
-    /// The time this request counts from; advances the schedule.
-    fn take(&mut self) -> Instant {
+    /// The time this request counts from (`now` in closed loop); advances
+    /// the schedule.
+    fn take(&mut self, now: Instant) -> Instant {
         match self.interval {
-            None => Instant::now(),
+            None => now,
             Some(i) => {
                 let t = self.next;
                 self.next += i;
@@ -254,10 +255,9 @@ async fn unary_worker(
     let mut q: Vec<f64> = Vec::new();
     loop {
         schedule.wait().await;
-        let t0 = schedule.take();
-        if Instant::now() >= plan.measure_until
-            || (args.max_requests > 0 && count >= args.max_requests)
-        {
+        let now = Instant::now();
+        let t0 = schedule.take(now);
+        if now >= plan.measure_until || (args.max_requests > 0 && count >= args.max_requests) {
             return Ok(());
         }
         count += 1;
@@ -584,7 +584,7 @@ async fn stream_worker(
         let open =
             now < plan.measure_until && (args.max_requests == 0 || count < args.max_requests);
         if open && inflight.len() < args.pipeline && schedule.due(now) {
-            let t0 = schedule.take();
+            let t0 = schedule.take(now);
             let mut q = Vec::with_capacity(8);
             source.fill(&mut q);
             let id = next_id;
