@@ -165,7 +165,7 @@ impl GrpcService {
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let id = msg.id;
         let answer = match msg.ik {
-            Some(ik) => self.stream_ik(&msg.robot, msg.joints.is_empty(), ik).await,
+            Some(ik) => self.stream_ik(&msg.robot, msg.joints.is_empty(), *ik).await,
             None => std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                 self.stream_fk(
                     &msg.robot,
@@ -202,7 +202,13 @@ impl GrpcService {
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let jacobian = if include_jacobian {
             let entry = self.service.robot_at(robot, "robot")?;
-            Some(self.jacobian_one(&entry, joints, options, jacobian_frame, "jacobian_frame")?)
+            Some(Box::new(self.jacobian_one(
+                &entry,
+                joints,
+                options,
+                jacobian_frame,
+                "jacobian_frame",
+            )?))
         } else {
             None
         };
@@ -252,7 +258,7 @@ impl GrpcService {
             length_unit: unit as i32,
             frames: Vec::new(),
             jacobian: None,
-            ik: Some(result),
+            ik: Some(Box::new(result)),
             packed_frames: None,
         })
     }

@@ -180,7 +180,7 @@ async fn ik_is_the_same_on_grpc_rest_and_websocket() {
         // On the gRPC stream too.
         let (tx, mut rx) = open_stream(&mut c, 4).await;
         let mut msg = stream_request(9, robot, &[], None);
-        msg.ik = Some(ik_request("", target, pb::AngleUnit::Deg));
+        msg.ik = Some(Box::new(ik_request("", target, pb::AngleUnit::Deg)));
         tx.send(msg).await.unwrap();
         let s = rx.message().await.unwrap().unwrap();
         assert_eq!(s.id, 9);
@@ -243,7 +243,7 @@ async fn an_unreached_target_is_failed_precondition_with_the_best_attempt() {
     // On the stream: an error response carrying the same details, and the stream goes on.
     let (tx, mut rx) = open_stream(&mut c, 4).await;
     let mut msg = stream_request(1, "ur5e", &[], None);
-    msg.ik = Some(req);
+    msg.ik = Some(Box::new(req));
     tx.send(msg).await.unwrap();
     tx.send(stream_request(2, "ur5e", &[0.0; 6], None))
         .await
