@@ -315,18 +315,8 @@ pub async fn fk(
 /// the handler's locals) into one buffer sized for a full pose answer (about
 /// 700 bytes), so a single answer is written without regrowing it.
 fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
-    let mut bytes = Vec::with_capacity(1024);
-    serde_json::to_writer(&mut bytes, body).map_err(|e| Error::Internal {
-        detail: e.to_string(),
-    })?;
-    Ok((
-        [(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("application/json"),
-        )],
-        bytes,
-    )
-        .into_response())
+    let bytes = super::streamed::json_bytes(body, 1024)?;
+    Ok(super::streamed::json_answer(bytes))
 }
 
 /// Forward kinematics of many configurations; poses in request order.

@@ -10,8 +10,9 @@
 //! without `Content-Length` (HTTP/1.1 chunked, or HTTP/2 DATA frames), and
 //! its bytes are exactly what serialising the whole [`FkBatchResponse`] gives.
 //!
-//! Owns only the body; which answers stream is the handler's choice. Depends
-//! on the DTOs and [`crate::api::pose_format`], nothing above the adapter.
+//! Owns the JSON answer bodies of the REST handlers (whole, or streamed for
+//! large batches); which answers stream is decided here by size. Depends on
+//! the DTOs and [`crate::api::pose_format`], nothing above the adapter.
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -75,8 +76,9 @@ pub fn batch_answer(
             poses: &poses,
         },
     };
-    if estimated_bytes(format, poses.len()) < STREAM_FROM_BYTES {
-        return json_bytes(&whole, 1024).map(json_answer);
+    let estimate = estimated_bytes(format, poses.len());
+    if estimate < STREAM_FROM_BYTES {
+        return json_bytes(&whole, estimate + 128).map(json_answer);
     }
     let empty = FkBatchResponse {
         poses: FormattedPoses { format, poses: &[] },
@@ -107,7 +109,10 @@ fn internal(detail: &str) -> Error {
 }
 
 /// `value` as JSON, in a buffer of `capacity` bytes to start with.
-fn json_bytes<T: serde::Serialize>(value: &T, capacity: usize) -> Result<Vec<u8>, Error> {
+pub(super) fn json_bytes<T: serde::Serialize>(
+    value: &T,
+    capacity: usize,
+) -> Result<Vec<u8>, Error> {
     let mut bytes = Vec::with_capacity(capacity);
     serde_json::to_writer(&mut bytes, value).map_err(|e| Error::Internal {
         detail: e.to_string(),
@@ -115,7 +120,8 @@ fn json_bytes<T: serde::Serialize>(value: &T, capacity: usize) -> Result<Vec<u8>
     Ok(bytes)
 }
 
-fn json_answer(body: impl Into<Body>) -> Response {
+/// A 200 `application/json` answer with `body`.
+pub(super) fn json_answer(body: impl Into<Body>) -> Response {
     (
         [(
             header::CONTENT_TYPE,
