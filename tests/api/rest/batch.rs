@@ -1,5 +1,5 @@
-//! REST batch FK: request order, a bad configuration failing the batch, and
-//! the batch size limit.
+//! REST batch FK: request order, a bad configuration failing the batch, the
+//! batch size limit, and large answers written as the client reads them.
 
 use serde_json::{Value, json};
 
@@ -160,4 +160,52 @@ async fn the_batch_limit_defaults_to_10000_and_is_413_above() {
         413,
     )
     .await;
+}
+
+/// A large answer (3,000 full poses, about 1.8 MB) goes out chunked, without
+/// `Content-Length`, over HTTP/1.1 and HTTP/2, and is exactly the answers
+/// of its parts (small answers, sent whole with `Content-Length`) joined:
+/// streaming changes how the bytes are sent, not which.
+#[tokio::test]
+async fn a_large_answer_is_streamed_and_equals_its_parts_joined() {
+    let app = spawn_app().await;
+    let qs = configs(3_000, 6);
+    let path = "/v1/robots/puma560/fk/batch";
+    let mut parts = Vec::new();
+    for chunk in qs.chunks(50) {
+        let r = app.post(path, &json!({"configurations": chunk})).await;
+        assert_eq!(r.status(), 200);
+        assert!(
+            r.headers().contains_key("content-length"),
+            "small answer sent whole"
+        );
+        let part: Value = r.json().await.unwrap();
+        parts.extend(part["poses"].as_array().unwrap().iter().cloned());
+    }
+    let h2 = reqwest::Client::builder()
+        .http2_prior_knowledge()
+        .build()
+        .unwrap();
+    for (client, version) in [(&app.client, "HTTP/1.1"), (&h2, "HTTP/2")] {
+        let r = client
+            .post(format!("{}{path}", app.http))
+            .json(&json!({"configurations": qs}))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 200, "{version}");
+        assert_eq!(r.headers()["content-type"], "application/json");
+        assert!(
+            !r.headers().contains_key("content-length"),
+            "{version}: a large answer is streamed"
+        );
+        let whole: Value = r.json().await.unwrap();
+        assert_eq!(whole["robot"], "puma560");
+        assert_eq!(whole["length_unit"], "m");
+        // Exact equality of every number (serde_json parses with float_roundtrip).
+        assert!(
+            whole["poses"].as_array().unwrap() == &parts,
+            "{version}: streamed poses differ from the parts' poses"
+        );
+    }
 }
