@@ -11,8 +11,17 @@ use serde_json::{Value, json};
 use crate::helpers::browser::*;
 use crate::helpers::*;
 
-/// The tool handle's position on the canvas (CSS px) and the canvas size.
+/// The tool handle's position on the canvas (CSS px) and the canvas size,
+/// once the view has drawn its latest state (the page marks the canvas
+/// `data-drawn="pending"` from a change until the frame showing it).
 async fn tool_handle(b: &Browser) -> (f64, f64, f64, f64) {
+    b.wait_until(
+        "the view to draw its latest state",
+        "return document.getElementById('view').dataset.drawn === 'done';",
+        json!([]),
+        "return document.getElementById('view').dataset;",
+    )
+    .await;
     let v = b
         .exec(
             "const c = document.getElementById('view'); const r = c.getBoundingClientRect();
@@ -218,7 +227,7 @@ async fn dragging_the_tool_moves_the_arm_by_ik_to_the_dragged_target() {
     b.wait_until(
         "the zoomed-out view to be drawn",
         "const [x, y] = arguments; const d = document.getElementById('view').dataset;
-         return Math.hypot(Number(d.toolX) - x, Number(d.toolY) - y) > 20;",
+         return d.drawn === 'done' && Math.hypot(Number(d.toolX) - x, Number(d.toolY) - y) > 20;",
         json!([x0, y0]),
         "return document.getElementById('view').dataset;",
     )

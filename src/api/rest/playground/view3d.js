@@ -218,7 +218,10 @@ export class View3D {
   }
 
   redraw() {
-    if (!this.ctx || this.pending) return;
+    if (!this.ctx) return;
+    // For automation: the drawn frame is behind the state until 'done'.
+    this.canvas.dataset.drawn = 'pending';
+    if (this.pending) return;
     this.pending = true;
     const run = () => {
       this.pending = false;
@@ -311,6 +314,7 @@ export class View3D {
       delete d.toolX;
       delete d.toolY;
     }
+    d.drawn = 'done';
     d.ghost = this.ghost ? 'shown' : '';
   }
 
