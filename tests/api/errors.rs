@@ -131,22 +131,11 @@ async fn json_syntax_errors_give_line_and_column() {
 #[tokio::test]
 async fn readme_error_examples_are_what_the_server_prints() {
     let app = spawn_app().await;
-    let readme = include_str!("../../README.md");
-    let marker = "<!-- error example: ";
     let mut seen = 0;
-    for part in readme.split(marker).skip(1) {
-        let (request, rest) = part.split_once(" -->").expect("example marker closes");
+    for (request, documented) in readme_examples("<!-- error example: ") {
         let (method, rest_req) = request.split_once(' ').unwrap();
         let (path, body) = rest_req.split_once(' ').unwrap();
         assert_eq!(method, "POST", "only POST examples are checked");
-        let block = rest
-            .split("```json")
-            .nth(1)
-            .unwrap()
-            .split("```")
-            .next()
-            .unwrap();
-        let documented: Value = serde_json::from_str(block).expect("README example is JSON");
         let (status, answered) = post_raw(&app, path, body).await;
         assert_eq!(Value::from(status), documented["status"], "{path} {body}");
         assert_eq!(answered, documented, "README example for {path} {body}");

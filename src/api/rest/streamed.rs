@@ -114,9 +114,7 @@ pub(super) fn json_bytes<T: serde::Serialize>(
     capacity: usize,
 ) -> Result<Vec<u8>, Error> {
     let mut bytes = Vec::with_capacity(capacity);
-    serde_json::to_writer(&mut bytes, value).map_err(|e| Error::Internal {
-        detail: e.to_string(),
-    })?;
+    serde_json::to_writer(&mut bytes, value).map_err(|e| internal(&e.to_string()))?;
     Ok(bytes)
 }
 

@@ -241,19 +241,9 @@ fn json_close(a: &Value, b: &Value) -> bool {
 #[tokio::test]
 async fn the_readme_pose_format_examples_are_what_the_server_answers() {
     let app = spawn_app().await;
-    let readme = include_str!("../../../README.md");
     let mut seen = 0;
-    for part in readme.split("<!-- pose format example: POST ").skip(1) {
-        let (request, rest) = part.split_once(" -->").expect("marker closes");
+    for (request, documented) in readme_examples("<!-- pose format example: POST ") {
         let (path, body) = request.split_once(' ').unwrap();
-        let block = rest
-            .split("```json")
-            .nth(1)
-            .unwrap()
-            .split("```")
-            .next()
-            .unwrap();
-        let documented: Value = serde_json::from_str(block).expect("README example is JSON");
         let body: Value = serde_json::from_str(body).expect("body is JSON");
         let r = app.post(path, &body).await;
         assert_eq!(r.status(), 200, "{path}");

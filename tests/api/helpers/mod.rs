@@ -19,6 +19,7 @@ pub(crate) mod pose_format;
 pub(crate) mod postgres;
 pub(crate) mod process;
 pub(crate) mod raw;
+pub(crate) mod readme;
 pub(crate) mod ws;
 
 pub(crate) use app::*;
@@ -34,4 +35,5 @@ pub(crate) use pose_format::*;
 pub(crate) use postgres::*;
 pub(crate) use process::*;
 pub(crate) use raw::*;
+pub(crate) use readme::*;
 pub(crate) use ws::*;

@@ -1,0 +1,28 @@
+//! The README's checked examples: a `<!-- … example: REQUEST -->` marker
+//! followed by a ```json block with the answer the server gives.
+
+use serde_json::Value;
+
+/// The README, as built into the test binary.
+const README: &str = include_str!("../../../README.md");
+
+/// Every example after `marker` (e.g. `"<!-- error example: "`): the request
+/// text up to ` -->`, and the first ```json block after it, parsed.
+pub(crate) fn readme_examples(marker: &str) -> Vec<(&'static str, Value)> {
+    README
+        .split(marker)
+        .skip(1)
+        .map(|part| {
+            let (request, rest) = part.split_once(" -->").expect("example marker closes");
+            let block = rest
+                .split("```json")
+                .nth(1)
+                .expect("a ```json block follows the marker")
+                .split("```")
+                .next()
+                .unwrap();
+            let documented = serde_json::from_str(block).expect("README example is JSON");
+            (request, documented)
+        })
+        .collect()
+}
