@@ -23,6 +23,7 @@ mod error;
 mod ik;
 mod joints;
 mod json;
+mod pose_format;
 mod robot;
 mod spec;
 mod urdf;
@@ -38,6 +39,7 @@ pub use joints::{JointBatch, JointVector};
 pub use json::{
     MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
 };
+pub use pose_format::{PoseFormat, matrix12};
 pub use robot::{FkOptions, Joint, ModelLimits, Robot};
 pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
