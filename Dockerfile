@@ -31,6 +31,7 @@ WORKDIR /build
 COPY Cargo.toml Cargo.lock ./
 COPY crates/kinserve-kinematics/Cargo.toml crates/kinserve-kinematics/
 COPY crates/kinserve-model/Cargo.toml crates/kinserve-model/
+COPY crates/kinserve-api/Cargo.toml crates/kinserve-api/
 COPY crates/kinserve-load/Cargo.toml crates/kinserve-load/
 COPY crates/kinserve-testkit/Cargo.toml crates/kinserve-testkit/
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
@@ -59,7 +60,7 @@ RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/regist
       target/release/kinserve*
 
 # 2) The real sources: only the kinserve binary and the crates it depends on
-#    (kinserve-kinematics, kinserve-model) are compiled here; the load
+#    (kinserve-kinematics, kinserve-model, kinserve-api) are compiled here; the load
 #    generator and the test kit are workspace members but not built.
 #    Targets whose sources stay out of the context (benches, tests) get their
 #    stubs again; real files (src/bin/*.rs) are left alone.

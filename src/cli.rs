@@ -7,10 +7,11 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
+use crate::api::rest::LinkTransformsOutput;
 use crate::api::velocity::{IkItem, IkOutput, JacobianItem, JacobianOutput};
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, FrameArg, IkArgs, JacobianArgs,
-    ModelArgs, ServeConfig,
+    LinkTransformsArgs, ModelArgs, ServeConfig,
 };
 use crate::error::Error;
 use crate::model::{
@@ -27,6 +28,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
         Some(Command::Jacobian(args)) => jacobian(&args),
+        Some(Command::LinkTransforms(args)) => link_transforms(&args),
         Some(Command::Ik(args)) => ik(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
@@ -184,6 +186,33 @@ fn jacobian(args: &JacobianArgs) -> ExitCode {
                 robot: robot.name().to_string(),
                 length_unit: robot.length_unit(),
                 result: JacobianItem::from(&q.jacobian(frame)),
+            };
+            print_json(&out, ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            print_error("--joints", &e.into());
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn link_transforms(args: &LinkTransformsArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let unit = if args.deg {
+        AngleUnit::Deg
+    } else {
+        AngleUnit::Rad
+    };
+    let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
+    match robot.check_joints(&args.joints, &opts) {
+        Ok(q) => {
+            let out = LinkTransformsOutput {
+                robot: robot.name().to_string(),
+                length_unit: robot.length_unit(),
+                link_transforms: q.link_transforms().iter().map(Into::into).collect(),
             };
             print_json(&out, ExitCode::SUCCESS)
         }

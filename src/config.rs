@@ -37,6 +37,9 @@ pub enum Command {
     /// Compute the geometric Jacobian once and print it as JSON (the REST
     /// API's `jacobian` response).
     Jacobian(JacobianArgs),
+    /// Print each DH row's link matrix ⁱ⁻¹Aᵢ and its inverse at one
+    /// configuration as JSON (the REST API's `link-transforms` response).
+    LinkTransforms(LinkTransformsArgs),
     /// Solve inverse kinematics once and print the answer as JSON (the REST
     /// API's `ik` response); exits 1 (printing the best attempt) if the
     /// target is not reached within the tolerance.
@@ -84,6 +87,28 @@ pub struct FkArgs {
     /// Also print every intermediate frame.
     #[arg(long)]
     pub frames: bool,
+    /// Do not check joint limits.
+    #[arg(long)]
+    pub no_limits: bool,
+}
+
+/// Arguments of `kinserve link-transforms`.
+#[derive(Debug, Args)]
+pub struct LinkTransformsArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Joint values, comma separated: rad (or deg with --deg) for revolute, model length unit for prismatic.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub joints: Vec<f64>,
+    /// Revolute joint values are in degrees.
+    #[arg(long)]
+    pub deg: bool,
     /// Do not check joint limits.
     #[arg(long)]
     pub no_limits: bool,
@@ -226,29 +251,7 @@ fn parse_batch(s: &str) -> Result<usize, String> {
     }
 }
 
-/// Parses `250ms`, `10s`, `2m`, or a plain number of seconds.
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let (num, unit) = match s.find(|c: char| c.is_ascii_alphabetic()) {
-        Some(i) => (&s[..i], &s[i..]),
-        None => (s, "s"),
-    };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("not a duration: '{s}'"))?;
-    if !v.is_finite() || v < 0.0 {
-        return Err(format!("not a duration: '{s}'"));
-    }
-    let secs = match unit {
-        "ms" => v / 1000.0,
-        "s" => v,
-        "m" | "min" => v * 60.0,
-        "h" => v * 3600.0,
-        _ => return Err(format!("unknown unit in '{s}' (use ms, s, m or h)")),
-    };
-    Ok(Duration::from_secs_f64(secs))
-}
+pub use kinserve_api::parse_duration;
 
 /// Configuration of `kinserve serve`. Its `Debug` output never shows the API
 /// token (only whether one is set), so the configuration can be logged.

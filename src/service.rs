@@ -10,8 +10,9 @@ use subtle::ConstantTimeEq;
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
 use crate::model::{
-    ClosedForm, FkOptions, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, LengthUnit, ModelLimits,
-    ReferenceFrame, Robot, RobotSpec,
+    ClosedForm, FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer,
+    JacobianBatchSpec, JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits,
+    PoseFormat, Robot, RobotSpec, StreamOp,
 };
 use crate::registry::{Condition, Entry, Origin, PutMode, Registry};
 
@@ -61,34 +62,7 @@ pub struct RobotSummary {
     pub origin: Origin,
 }
 
-/// Many joint configurations stored back to back: `values` holds them all and
-/// `lens[i]` is the length of configuration `i` (one allocation per request,
-/// none per configuration).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Configurations {
-    /// All values, configuration after configuration.
-    pub values: Vec<f64>,
-    /// Length of each configuration.
-    pub lens: Vec<u32>,
-}
-
-impl Configurations {
-    /// Number of configurations.
-    pub fn len(&self) -> usize {
-        self.lens.len()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.lens.is_empty()
-    }
-
-    /// Appends one configuration.
-    pub fn push(&mut self, q: &[f64]) {
-        self.values.extend_from_slice(q);
-        self.lens.push(q.len() as u32);
-    }
-}
+pub use crate::model::Configurations;
 
 /// The service shared by every front door.
 #[derive(Debug)]
@@ -352,31 +326,25 @@ impl Service {
         metrics::gauge!("kinserve_robots", "source" => "registered").set(registered as f64);
     }
 
-    /// Checked FK of one configuration: the tool pose.
-    pub fn fk(&self, robot: &Robot, q: &[f64], opts: &FkOptions) -> Result<Transform> {
-        Ok(robot.check_joints(q, opts)?.fk())
-    }
-
-    /// Checked FK of one configuration with every frame (see [`crate::model::JointVector::fk_frames`]).
-    pub fn fk_frames(
-        &self,
-        robot: &Robot,
-        q: &[f64],
-        opts: &FkOptions,
-    ) -> Result<(Transform, Vec<Transform>)> {
-        Ok(robot.check_joints(q, opts)?.fk_frames())
-    }
-
     /// Checked FK of one configuration: the tool pose, and every frame when
-    /// `frames` is set — the one entry point the front doors call for single FK.
-    pub fn fk_with_frames(
+    /// the request asks for them (see [`crate::model::JointVector::fk_frames`]).
+    pub fn fk(&self, robot: &Robot, spec: &FkSpec) -> Result<FkAnswer> {
+        let (pose, frames) = robot
+            .check_joints(&spec.joints, &spec.options)?
+            .fk_with_frames(spec.frames);
+        Ok(FkAnswer { pose, frames })
+    }
+
+    /// Checked link transforms of one configuration: each DH row's
+    /// `ⁱ⁻¹Aᵢ` and its inverse (see [`crate::model::JointVector::link_transforms`]).
+    pub fn link_transforms(
         &self,
         robot: &Robot,
-        q: &[f64],
-        opts: &FkOptions,
-        frames: bool,
-    ) -> Result<(Transform, Option<Vec<Transform>>)> {
-        Ok(robot.check_joints(q, opts)?.fk_with_frames(frames))
+        spec: &LinkTransformsSpec,
+    ) -> Result<Vec<LinkTransform>> {
+        Ok(robot
+            .check_joints(&spec.joints, &spec.options)?
+            .link_transforms())
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
@@ -395,17 +363,10 @@ impl Service {
 
     /// Checked FK of many configurations, poses in request order. One bad
     /// configuration fails the whole batch, naming it (`configurations[17][2]`).
-    pub fn fk_batch(
-        &self,
-        robot: &Robot,
-        configs: &Configurations,
-        opts: &FkOptions,
-    ) -> Result<Vec<Transform>> {
-        self.check_batch_size(configs.len())?;
-        let out = robot
-            .check_batch(&configs.values, &configs.lens, opts)?
-            .fk();
-        Ok(out)
+    pub fn fk_batch(&self, robot: &Robot, spec: &FkBatchSpec) -> Result<Vec<Transform>> {
+        let c = &spec.configurations;
+        self.check_batch_size(c.len())?;
+        Ok(robot.check_batch(&c.values, &c.lens, &spec.options)?.fk())
     }
 }
 
@@ -413,39 +374,25 @@ impl Service {
 /// thread) and IK (up to [`ServiceLimits::ik_time_limit`] per target, so the
 /// async front doors run it through [`Service::ik_blocking`]).
 impl Service {
-    /// Checked Jacobian of one configuration in `frame`, with its measures.
-    pub fn jacobian(
-        &self,
-        robot: &Robot,
-        q: &[f64],
-        opts: &FkOptions,
-        frame: ReferenceFrame,
-    ) -> Result<JacobianAnswer> {
-        Ok(robot.check_joints(q, opts)?.jacobian(frame))
+    /// Checked Jacobian of one configuration in the request's frame, with its measures.
+    pub fn jacobian(&self, robot: &Robot, spec: &JacobianSpec) -> Result<JacobianAnswer> {
+        Ok(robot
+            .check_joints(&spec.joints, &spec.options)?
+            .jacobian(spec.frame))
     }
 
     /// Checked Jacobians of many configurations, in request order; one bad
     /// configuration fails the batch, naming it (`configurations[17][2]`).
+    /// Each configuration is validated once.
     pub fn jacobian_batch(
         &self,
         robot: &Robot,
-        configs: &Configurations,
-        opts: &FkOptions,
-        frame: ReferenceFrame,
+        spec: &JacobianBatchSpec,
     ) -> Result<Vec<JacobianAnswer>> {
-        self.check_batch_size(configs.len())?;
-        robot.check_batch(&configs.values, &configs.lens, opts)?;
-        let mut out = Vec::with_capacity(configs.len());
-        let mut offset = 0;
-        for &len in &configs.lens {
-            let q = configs
-                .values
-                .get(offset..offset + len as usize)
-                .unwrap_or(&[]);
-            out.push(robot.check_joints(q, opts)?.jacobian(frame));
-            offset += len as usize;
-        }
-        Ok(out)
+        let c = &spec.configurations;
+        self.check_batch_size(c.len())?;
+        let batch = robot.check_batch(&c.values, &c.lens, &spec.options)?;
+        Ok(batch.vectors().map(|q| q.jacobian(spec.frame)).collect())
     }
 
     /// Validates and solves one IK request on this thread (up to
@@ -517,6 +464,70 @@ impl Service {
             .map_err(|e| Error::Internal {
                 detail: e.to_string(),
             })?
+    }
+}
+
+/// The answer to one FK request: the tool pose, and every frame when asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FkAnswer {
+    /// Tool pose `^world T_tool`.
+    pub pose: Transform,
+    /// `^world T_i` for `i = 0..=rows`, when asked for.
+    pub frames: Option<Vec<Transform>>,
+}
+
+/// The answer to one stream message ([`Service::stream_step`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum StreamAnswer {
+    /// FK: the tool pose (the Jacobian's when it was asked for; the same pose),
+    /// frames, the Jacobian and the link transforms as asked for.
+    Fk {
+        /// Tool pose and frames.
+        fk: FkAnswer,
+        /// How the message asked for its poses.
+        pose_format: PoseFormat,
+        /// The Jacobian, when asked for.
+        jacobian: Option<JacobianAnswer>,
+        /// The link transforms, when asked for.
+        link_transforms: Option<Vec<LinkTransform>>,
+    },
+    /// IK: the answer (converged; not converged is an error).
+    Ik(IkAnswer),
+}
+
+/// One stream message, the same for the WebSocket and the gRPC stream.
+impl Service {
+    /// Answers one stream message for `entry`: FK (with the Jacobian and the
+    /// link transforms when asked for, validated once) on this task, IK on
+    /// the blocking pool. Counts the poses under `protocol`.
+    pub async fn stream_step(
+        self: &Arc<Self>,
+        entry: Arc<Entry>,
+        op: StreamOp,
+        protocol: crate::telemetry::Protocol,
+    ) -> Result<StreamAnswer> {
+        match op {
+            StreamOp::Ik(spec) => Ok(StreamAnswer::Ik(self.ik_blocking(entry, *spec).await?)),
+            StreamOp::Fk {
+                fk,
+                jacobian,
+                link_transforms,
+            } => {
+                let q = entry.robot.check_joints(&fk.joints, &fk.options)?;
+                let (pose, frames) = q.fk_with_frames(fk.frames);
+                let jacobian = jacobian.map(|frame| q.jacobian(frame));
+                // With the Jacobian, the pose is the Jacobian's (as `…/jacobian` answers it).
+                let pose = jacobian.as_ref().map_or(pose, |j| j.pose);
+                let link_transforms = link_transforms.then(|| q.link_transforms());
+                entry.count_poses(protocol, 1);
+                Ok(StreamAnswer::Fk {
+                    fk: FkAnswer { pose, frames },
+                    pose_format: fk.pose_format,
+                    jacobian,
+                    link_transforms,
+                })
+            }
+        }
     }
 }
 

@@ -10,6 +10,7 @@ mod grpc;
 mod helpers;
 mod hostile;
 mod ik;
+mod link_transforms;
 mod logs;
 mod metrics;
 mod openapi;

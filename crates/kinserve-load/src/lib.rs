@@ -12,7 +12,7 @@ use clap::{Parser, ValueEnum};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 
-use kinserve::config::parse_duration;
+use kinserve_api::parse_duration;
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{ModelLimits, Robot, RobotSpec};
 
@@ -95,14 +95,14 @@ impl PoseFormat {
     }
 
     /// gRPC `FkOptions` asking for this format (`None` for `full`).
-    fn pb_options(self) -> Option<kinserve::api::grpc::pb::FkOptions> {
-        use kinserve::api::grpc::pb::PoseFormat as Pb;
+    fn pb_options(self) -> Option<kinserve_api::pb::FkOptions> {
+        use kinserve_api::pb::PoseFormat as Pb;
         let format = match self {
             PoseFormat::Full => return None,
             PoseFormat::Matrix => Pb::Matrix,
             PoseFormat::Position => Pb::Position,
         };
-        Some(kinserve::api::grpc::pb::FkOptions {
+        Some(kinserve_api::pb::FkOptions {
             pose_format: format as i32,
             ..Default::default()
         })

@@ -8,8 +8,8 @@ use futures_util::{SinkExt, StreamExt};
 use tokio_tungstenite::tungstenite::Message;
 
 use super::{ConfigSource, Plan, PoseFormat, Tally, Target, verify_pose};
-use kinserve::api::grpc::pb;
-use kinserve::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
+use kinserve_api::pb;
+use kinserve_api::pb::kinematics_service_client::KinematicsServiceClient;
 
 /// Sending schedule of one worker: closed loop (send when ready) or open loop
 /// (fixed intervals; latency counts from the scheduled time).

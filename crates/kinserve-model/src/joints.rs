@@ -101,6 +101,17 @@ impl<'a> JointBatch<'a> {
             .forward_batch(self.values, self.angle_scale, out);
     }
 
+    /// Each configuration as the joint vector it was checked as, in order
+    /// (each was validated once, by [`Robot::check_batch`]).
+    pub fn vectors(&self) -> impl ExactSizeIterator<Item = JointVector<'a>> + 'a {
+        let (robot, scale, values) = (self.robot, self.angle_scale, self.values);
+        let dof = robot.dof();
+        (0..self.count).map(move |i| {
+            let q = values.get(i * dof..(i + 1) * dof).unwrap_or(&[]);
+            JointVector::new(robot, q, scale)
+        })
+    }
+
     /// Tool poses, in order.
     pub fn fk(&self) -> Vec<Transform> {
         let mut out = vec![Transform::IDENTITY; self.count];

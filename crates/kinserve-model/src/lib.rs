@@ -24,6 +24,7 @@ mod ik;
 mod joints;
 mod json;
 mod pose_format;
+mod requests;
 mod robot;
 mod spec;
 mod urdf;
@@ -40,6 +41,10 @@ pub use json::{
     MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
 };
 pub use pose_format::{PoseFormat, matrix12};
+pub use requests::{
+    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransform,
+    LinkTransformsSpec, StreamOp,
+};
 pub use robot::{FkOptions, Joint, ModelLimits, Robot};
 pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,

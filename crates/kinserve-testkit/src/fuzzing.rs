@@ -26,11 +26,11 @@ use kinserve::api::pose::Pose;
 use kinserve::api::rest::{FkBatchRequest, FkRequest, Problem, WsRequest};
 use kinserve::error::Error;
 use kinserve::registry::{MemoryStore, Registry};
-use kinserve::service::{Configurations, Service, ServiceLimits};
+use kinserve::service::{Service, ServiceLimits};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
-    AngleUnit, FkOptions, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError, ModelLimits,
-    RIGID_TOLERANCE, Robot, parse_json,
+    AngleUnit, FkBatchSpec, FkOptions, FkSpec, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError,
+    ModelLimits, RIGID_TOLERANCE, Robot, StreamOp, parse_json,
 };
 
 pub use crate::fuzz_ik::check_ik_request;
@@ -174,29 +174,26 @@ pub fn check_fk_request(bytes: &[u8]) {
     match parse_json::<FkRequest>(bytes) {
         Ok(req) => {
             for robot in robots() {
-                evaluate_one(service, robot, &req.joints, &req.options(), req.frames);
+                evaluate_one(service, robot, &FkSpec::from(req.clone()));
             }
         }
         Err(e) => assert_client_error(&Error::from(e), "FkRequest"),
     }
     match parse_json::<FkBatchRequest>(bytes) {
         Ok(req) => {
+            let spec = FkBatchSpec::from(req);
             for robot in robots() {
-                evaluate_batch(service, robot, &req.configurations, &req.options());
+                evaluate_batch(service, robot, &spec);
             }
         }
         Err(e) => assert_client_error(&Error::from(e), "FkBatchRequest"),
     }
     match parse_json::<WsRequest>(bytes) {
         Ok(req) => {
-            let opts = FkOptions {
-                angle_unit: req.angle_unit,
-                check_limits: req.check_limits,
-            };
             // An IK message is the IK check's business (check_ik_request).
-            if let Some(joints) = &req.joints {
+            if let Ok(StreamOp::Fk { fk, .. }) = StreamOp::try_from(req) {
                 for robot in robots() {
-                    evaluate_one(service, robot, joints, &opts, req.frames);
+                    evaluate_one(service, robot, &fk);
                 }
             }
         }
@@ -204,14 +201,23 @@ pub fn check_fk_request(bytes: &[u8]) {
     }
 }
 
-fn evaluate_one(service: &Service, robot: &Robot, q: &[f64], opts: &FkOptions, frames: bool) {
-    let single = match service.fk(robot, q, opts) {
-        Ok(t) => t,
+fn evaluate_one(service: &Service, robot: &Robot, spec: &FkSpec) {
+    let (q, opts) = (&spec.joints[..], &spec.options);
+    let with_frames = FkSpec {
+        frames: true,
+        ..spec.clone()
+    };
+    let without = FkSpec {
+        frames: false,
+        ..spec.clone()
+    };
+    let single = match service.fk(robot, &without) {
+        Ok(t) => t.pose,
         Err(e) => {
             assert_client_error(&e, "fk");
             // The frames path must refuse the same input.
             assert!(
-                service.fk_frames(robot, q, opts).is_err(),
+                service.fk(robot, &with_frames).is_err(),
                 "fk and fk_frames disagree"
             );
             return;
@@ -219,9 +225,9 @@ fn evaluate_one(service: &Service, robot: &Robot, q: &[f64], opts: &FkOptions, f
     };
     check_pose(&single, "fk", q);
     check_serialises(&single, q);
-    if frames || opts.angle_unit == AngleUnit::Rad {
-        let (tool, all) = match service.fk_frames(robot, q, opts) {
-            Ok(r) => r,
+    if spec.frames || opts.angle_unit == AngleUnit::Rad {
+        let (tool, all) = match service.fk(robot, &with_frames) {
+            Ok(r) => (r.pose, r.frames.unwrap_or_default()),
             Err(e) => panic!("fk accepted {q:?} but fk_frames refused it: {e}"),
         };
         check_pose(&tool, "fk_frames", q);
@@ -235,8 +241,9 @@ fn evaluate_one(service: &Service, robot: &Robot, q: &[f64], opts: &FkOptions, f
     }
 }
 
-fn evaluate_batch(service: &Service, robot: &Robot, configs: &Configurations, opts: &FkOptions) {
-    let poses = match service.fk_batch(robot, configs, opts) {
+fn evaluate_batch(service: &Service, robot: &Robot, spec: &FkBatchSpec) {
+    let (configs, opts) = (&spec.configurations, &spec.options);
+    let poses = match service.fk_batch(robot, spec) {
         Ok(p) => p,
         Err(e) => {
             assert_client_error(&e, "fk_batch");

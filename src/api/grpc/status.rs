@@ -58,7 +58,7 @@ fn ik_not_converged(code: Code, message: String, best: &crate::model::IkAnswer) 
         domain: ERROR_DOMAIN.into(),
         metadata,
     };
-    let result = super::velocity::ik_result_to_pb(best);
+    let result = kinserve_api::pb::InverseKinematicsResult::from(best);
     let status = tonic_types::Status {
         code: code as i32,
         message: message.clone(),

@@ -1,14 +1,14 @@
 //! REST request and response bodies.
 
-use std::fmt;
-
-use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
-use serde::{Deserialize, Deserializer, Serialize};
+use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat, PoseValue};
 use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
-use crate::service::Configurations;
+use crate::model::{
+    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
+    StreamOp,
+};
 
 fn default_true() -> bool {
     true
@@ -98,10 +98,18 @@ pub struct FkRequest {
     pub pose_format: PoseFormat,
 }
 
-impl FkRequest {
-    /// The evaluation options this request asks for.
-    pub fn options(&self) -> FkOptions {
-        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+fn options(angle_unit: AngleUnit, check_limits: bool) -> FkOptions {
+    FkOptions::new(Some(angle_unit), Some(check_limits))
+}
+
+impl From<FkRequest> for FkSpec {
+    fn from(r: FkRequest) -> FkSpec {
+        FkSpec {
+            options: options(r.angle_unit, r.check_limits),
+            joints: r.joints,
+            frames: r.frames,
+            pose_format: r.pose_format,
+        }
     }
 }
 
@@ -124,10 +132,13 @@ pub struct FkBatchRequest {
     pub pose_format: PoseFormat,
 }
 
-impl FkBatchRequest {
-    /// The evaluation options this request asks for.
-    pub fn options(&self) -> FkOptions {
-        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+impl From<FkBatchRequest> for FkBatchSpec {
+    fn from(r: FkBatchRequest) -> FkBatchSpec {
+        FkBatchSpec {
+            options: options(r.angle_unit, r.check_limits),
+            configurations: r.configurations,
+            pose_format: r.pose_format,
+        }
     }
 }
 
@@ -149,10 +160,37 @@ pub struct JacobianRequest {
     pub frame: ReferenceFrame,
 }
 
-impl JacobianRequest {
-    /// The evaluation options this request asks for.
-    pub fn options(&self) -> FkOptions {
-        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+impl From<JacobianRequest> for JacobianSpec {
+    fn from(r: JacobianRequest) -> JacobianSpec {
+        JacobianSpec {
+            options: options(r.angle_unit, r.check_limits),
+            joints: r.joints,
+            frame: r.frame,
+        }
+    }
+}
+
+/// `POST /v1/robots/{name}/link-transforms`.
+#[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"joints": [0.5, 0.1], "angle_unit": "rad"}))]
+pub struct LinkTransformsRequest {
+    /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
+    pub joints: Vec<f64>,
+    /// Unit of revolute joint values (default `rad`).
+    #[serde(default)]
+    pub angle_unit: AngleUnit,
+    /// Reject values outside the joint limits (default true).
+    #[serde(default = "default_true")]
+    pub check_limits: bool,
+}
+
+impl From<LinkTransformsRequest> for LinkTransformsSpec {
+    fn from(r: LinkTransformsRequest) -> LinkTransformsSpec {
+        LinkTransformsSpec {
+            options: options(r.angle_unit, r.check_limits),
+            joints: r.joints,
+        }
     }
 }
 
@@ -175,10 +213,13 @@ pub struct JacobianBatchRequest {
     pub frame: ReferenceFrame,
 }
 
-impl JacobianBatchRequest {
-    /// The evaluation options this request asks for.
-    pub fn options(&self) -> FkOptions {
-        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+impl From<JacobianBatchRequest> for JacobianBatchSpec {
+    fn from(r: JacobianBatchRequest) -> JacobianBatchSpec {
+        JacobianBatchSpec {
+            options: options(r.angle_unit, r.check_limits),
+            configurations: r.configurations,
+            frame: r.frame,
+        }
     }
 }
 
@@ -215,52 +256,6 @@ pub struct FkBatchResponse<'a> {
     pub poses: FormattedPoses<'a>,
 }
 
-impl<'de> Deserialize<'de> for Configurations {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct Outer;
-        impl<'de> Visitor<'de> for Outer {
-            type Value = Configurations;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("an array of joint arrays")
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Configurations, A::Error> {
-                let mut out = Configurations {
-                    values: Vec::with_capacity(seq.size_hint().unwrap_or(0).min(4096) * 6),
-                    lens: Vec::with_capacity(seq.size_hint().unwrap_or(0).min(4096)),
-                };
-                while let Some(n) = seq.next_element_seed(Row(&mut out.values))? {
-                    out.lens.push(n);
-                }
-                Ok(out)
-            }
-        }
-        struct Row<'a>(&'a mut Vec<f64>);
-        impl<'de> DeserializeSeed<'de> for Row<'_> {
-            type Value = u32;
-            fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<u32, D::Error> {
-                d.deserialize_seq(self)
-            }
-        }
-        impl<'de> Visitor<'de> for Row<'_> {
-            type Value = u32;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("an array of joint values")
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<u32, A::Error> {
-                let mut n = 0u32;
-                while let Some(x) = seq.next_element::<f64>()? {
-                    self.0.push(x);
-                    n = n
-                        .checked_add(1)
-                        .ok_or_else(|| de::Error::custom("too many values"))?;
-                }
-                Ok(n)
-            }
-        }
-        d.deserialize_seq(Outer)
-    }
-}
-
 /// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the
 /// reply; with `"jacobian": true` the reply carries the Jacobian too; with
 /// `"ik": {...}` (an IK request body, and no `joints`) it is an IK request.
@@ -283,6 +278,10 @@ pub struct WsRequest {
     /// An IK request instead of FK (like the body of `POST /v1/robots/{name}/ik`).
     #[serde(default)]
     pub ik: Option<IkSpec>,
+    /// Also return each DH row's link matrix and its inverse (default false;
+    /// as `POST …/link-transforms` answers them).
+    #[serde(default)]
+    pub link_transforms: bool,
     /// Unit of revolute joint values (default `rad`).
     #[serde(default)]
     pub angle_unit: AngleUnit,
@@ -298,10 +297,34 @@ pub struct WsRequest {
     pub pose_format: PoseFormat,
 }
 
-impl WsRequest {
-    /// The evaluation options this message asks for.
-    pub fn options(&self) -> FkOptions {
-        FkOptions::new(Some(self.angle_unit), Some(self.check_limits))
+impl TryFrom<WsRequest> for StreamOp {
+    type Error = crate::model::ModelError;
+    /// FK (with the Jacobian and link transforms when asked for) or IK; both
+    /// `joints` and `ik`, or neither, is refused naming `joints`.
+    fn try_from(r: WsRequest) -> Result<StreamOp, Self::Error> {
+        use crate::model::ModelError;
+        match (r.ik, r.joints) {
+            (Some(_), Some(_)) => Err(ModelError::invalid_field(
+                "joints",
+                "give joints (FK) or ik, not both",
+            )),
+            (Some(ik), None) => Ok(StreamOp::Ik(Box::new(ik))),
+            // As serde reports a missing field (400), naming the alternative.
+            (None, None) => Err(ModelError::malformed_field(
+                "joints",
+                "missing field `joints` (or give `ik`)",
+            )),
+            (None, Some(joints)) => Ok(StreamOp::Fk {
+                fk: FkSpec {
+                    joints,
+                    options: options(r.angle_unit, r.check_limits),
+                    frames: r.frames,
+                    pose_format: r.pose_format,
+                },
+                jacobian: r.jacobian.then_some(r.frame),
+                link_transforms: r.link_transforms,
+            }),
+        }
     }
 }
 
@@ -338,6 +361,10 @@ pub struct WsReply<'a> {
     /// For an IK request: the answer (as `POST …/ik` answers it, `pose` above).
     #[serde(flatten)]
     pub ik: Option<WsIk>,
+    /// With `"link_transforms": true`: each DH row's link matrix and its
+    /// inverse (as `POST …/link-transforms` answers them).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_transforms: Option<Vec<LinkTransformItem>>,
     /// The problem, on failure.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<super::problem::Problem>,
@@ -356,6 +383,54 @@ pub struct WsJacobian {
     pub condition_number: Option<f64>,
     /// Smallest singular value below 1e-6.
     pub singular: bool,
+}
+
+impl From<&crate::model::JacobianAnswer> for WsJacobian {
+    fn from(a: &crate::model::JacobianAnswer) -> Self {
+        let item = crate::api::velocity::JacobianItem::from(a);
+        WsJacobian {
+            frame: item.frame,
+            jacobian: item.jacobian,
+            manipulability: item.manipulability,
+            condition_number: item.condition_number,
+            singular: item.singular,
+        }
+    }
+}
+
+/// One DH row's link matrix `ⁱ⁻¹Aᵢ` and its inverse.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LinkTransformItem {
+    /// `ⁱ⁻¹Aᵢ`: frame `i` in frame `i−1`, homogeneous 4×4, row-major, robot length unit.
+    pub matrix: [[f64; 4]; 4],
+    /// Its inverse `[Rᵀ | −Rᵀp]`, homogeneous 4×4, row-major.
+    pub inverse: [[f64; 4]; 4],
+}
+
+impl From<&crate::model::LinkTransform> for LinkTransformItem {
+    fn from(l: &crate::model::LinkTransform) -> Self {
+        LinkTransformItem {
+            matrix: l.matrix.matrix(),
+            inverse: l.inverse.matrix(),
+        }
+    }
+}
+
+/// `POST /v1/robots/{name}/link-transforms` response and `kinserve link-transforms` output.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "link_transforms": [
+    {"matrix": [[0.8775825618903728, -0.479425538604203, 0.0, 0.3510330247561491], [0.479425538604203, 0.8775825618903728, 0.0, 0.1917702154416812], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+     "inverse": [[0.8775825618903728, 0.479425538604203, 0.0, -0.4], [-0.479425538604203, 0.8775825618903728, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]},
+    {"matrix": [[0.9950041652780258, -0.09983341664682815, 0.0, 0.29850124958340776], [0.09983341664682815, 0.9950041652780258, 0.0, 0.029950024994048446], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+     "inverse": [[0.9950041652780258, 0.09983341664682815, 0.0, -0.3], [-0.09983341664682815, 0.9950041652780258, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]}]}))]
+pub struct LinkTransformsOutput {
+    /// Robot name.
+    pub robot: String,
+    /// Length unit of the translations.
+    pub length_unit: LengthUnit,
+    /// One per DH row in table order (fixed rows included; base and tool are
+    /// not rows): `base · A₁ ⋯ Aₙ · tool` is the tool pose.
+    pub link_transforms: Vec<LinkTransformItem>,
 }
 
 /// The IK part of a WebSocket reply (see [`crate::api::velocity::IkItem`]).

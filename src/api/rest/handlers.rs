@@ -7,14 +7,16 @@ use axum::response::{IntoResponse, Response};
 
 use super::AppState;
 use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
+use super::dto::{LinkTransformItem, LinkTransformsOutput, LinkTransformsRequest};
 use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
 use crate::api::pose_format::{FormattedPose, FormattedPoses};
 use crate::error::Error;
-use crate::model::RobotSpec;
+use crate::model::{FkBatchSpec, FkSpec, RobotSpec};
 use crate::registry::{Condition, Entry, Origin, PutMode};
+use crate::service::FkAnswer;
 use crate::telemetry::Protocol;
 use axum::extract::Query;
 use axum::extract::rejection::QueryRejection;
@@ -295,12 +297,10 @@ pub async fn fk(
 ) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
-    let opts = req.options();
-    let (pose, frames) = state
-        .service
-        .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
+    let spec = FkSpec::from(req);
+    let FkAnswer { pose, frames } = state.service.fk(robot, &spec)?;
     entry.count_poses(Protocol::Rest, 1);
-    let format = req.pose_format;
+    let format = spec.pose_format;
     json_response(&FkReply {
         robot: robot.name(),
         length_unit: robot.length_unit(),
@@ -336,17 +336,43 @@ pub async fn fk_batch(
 ) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
-    let poses = state
-        .service
-        .fk_batch(robot, &req.configurations, &req.options())?;
+    let spec = FkBatchSpec::from(req);
+    let poses = state.service.fk_batch(robot, &spec)?;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
     // Large answers are written a frame at a time as the connection takes them.
     Ok(super::streamed::batch_answer(
         robot.name(),
         robot.length_unit(),
-        req.pose_format,
+        spec.pose_format,
         poses,
     )?)
+}
+
+/// Each DH row's link matrix `ⁱ⁻¹Aᵢ` (the course notes' factors of the arm
+/// matrix) and its closed-form inverse at one configuration, in table order;
+/// `base · A₁ ⋯ Aₙ · tool` is the tool pose.
+#[utoipa::path(post, path = "/v1/robots/{name}/link-transforms", tag = "fk", request_body = LinkTransformsRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses((status = 200, body = LinkTransformsOutput),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 422, body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+pub async fn link_transforms(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<LinkTransformsRequest>,
+) -> ApiResult<Json<LinkTransformsOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let links = state.service.link_transforms(robot, &req.into())?;
+    Ok(Json(LinkTransformsOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        link_transforms: links.iter().map(LinkTransformItem::from).collect(),
+    }))
 }
 
 /// Unknown route: 404 problem.

@@ -39,8 +39,8 @@ use utoipa_swagger_ui::SwaggerUi;
 pub use body_budget::{ByteBudget, Reservation, RestBudgets};
 pub use conn::ConnActivity;
 pub use dto::{
-    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, RobotList, RobotSummaryDto,
-    WsRequest,
+    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, LinkTransformItem,
+    LinkTransformsOutput, LinkTransformsRequest, RobotList, RobotSummaryDto, WsRequest,
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
@@ -146,7 +146,7 @@ impl Modify for SecurityAddon {
     paths(
         handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
         handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, velocity::jacobian, velocity::jacobian_batch,
+        handlers::fk, handlers::fk_batch, handlers::link_transforms, velocity::jacobian, velocity::jacobian_batch,
         velocity::ik, velocity::ik_batch, ws::stream, metrics_text,
         export::closed_form, export::urdf
     ),
@@ -317,6 +317,7 @@ fn route_label(path: Option<&MatchedPath>) -> SharedString {
         "/v1/robots/{name}/ik",
         "/v1/robots/{name}/ik/batch",
         "/v1/robots/{name}/closed-form",
+        "/v1/robots/{name}/link-transforms",
         "/v1/robots/{name}/urdf",
         "/v1/robots/{name}",
         "/v1/robots",
@@ -523,6 +524,10 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
             axum::routing::post(velocity::ik_batch),
         );
     let export = Router::new()
+        .route(
+            "/v1/robots/{name}/link-transforms",
+            axum::routing::post(handlers::link_transforms),
+        )
         .route("/v1/robots/{name}/closed-form", get(export::closed_form))
         .route("/v1/robots/{name}/urdf", get(export::urdf));
     let api = fk

@@ -13,7 +13,7 @@ use super::problem::{ApiError, Problem};
 use crate::api::velocity::{
     IkBatchOutput, IkItem, IkOutput, JacobianBatchOutput, JacobianItem, JacobianOutput,
 };
-use crate::model::{IkBatchSpec, IkSpec};
+use crate::model::{IkBatchSpec, IkSpec, JacobianBatchSpec, JacobianSpec};
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -53,9 +53,7 @@ pub async fn jacobian(
 ) -> ApiResult<Json<JacobianOutput>> {
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
-    let answer = state
-        .service
-        .jacobian(robot, &req.joints, &req.options(), req.frame)?;
+    let answer = state.service.jacobian(robot, &JacobianSpec::from(req))?;
     Ok(Json(JacobianOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),
@@ -96,10 +94,9 @@ pub async fn jacobian_batch(
 ) -> ApiResult<Json<JacobianBatchOutput>> {
     let entry = state.service.robot(&name)?;
     let robot = &entry.robot;
-    let answers =
-        state
-            .service
-            .jacobian_batch(robot, &req.configurations, &req.options(), req.frame)?;
+    let answers = state
+        .service
+        .jacobian_batch(robot, &JacobianBatchSpec::from(req))?;
     Ok(Json(JacobianBatchOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),

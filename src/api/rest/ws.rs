@@ -13,12 +13,14 @@ use futures_util::{FutureExt, SinkExt};
 use tokio::time::Instant;
 
 use super::AppState;
-use super::dto::{WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
+use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
 use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
 use crate::error::Error;
+use crate::model::{LengthUnit, StreamOp};
+use crate::service::StreamAnswer;
 use crate::telemetry::{Protocol, StreamGuard};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
@@ -249,14 +251,17 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
         frames: None,
         jacobian: None,
         ik: None,
+        link_transforms: None,
         error: Some(Problem::from_error(e)),
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }
 
-/// The reply to one text message.
+/// The reply to one text message: parsed into the protocol-neutral
+/// [`StreamOp`], answered by [`Service::stream_step`](crate::service::Service::stream_step)
+/// (the same step as the gRPC stream's), written as JSON.
 async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
-    let req: WsRequest = match parse_object(bytes) {
+    let mut req: WsRequest = match parse_object(bytes) {
         Ok(r) => r,
         Err(e) => {
             let id = serde_json::from_slice::<WsIdOnly>(bytes)
@@ -265,105 +270,69 @@ async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
             return error_reply(&id, &e);
         }
     };
+    let id = std::mem::take(&mut req.id);
+    let op = match StreamOp::try_from(req) {
+        Ok(op) => op,
+        Err(e) => return error_reply(&id, &e.into()),
+    };
     let entry = match state.service.robot(name) {
         Ok(e) => e,
-        Err(e) => return error_reply(&req.id, &e),
+        Err(e) => return error_reply(&id, &e),
     };
-    if let Some(ik) = req.ik.clone() {
-        if req.joints.is_some() {
-            let e = Error::invalid_field("joints", "give joints (FK) or ik, not both");
-            return error_reply(&req.id, &e);
-        }
-        return ik_reply(state, entry, &req, ik).await;
-    }
-    let Some(joints) = req.joints.as_deref() else {
-        // As serde reports a missing field (400), naming the alternative.
-        let e = Error::malformed_field("joints", "missing field `joints` (or give `ik`)");
-        return error_reply(&req.id, &e);
-    };
-    fk_reply(state, &entry, &req, joints)
-}
-
-/// The reply to an IK message.
-async fn ik_reply(
-    state: &AppState,
-    entry: std::sync::Arc<crate::registry::Entry>,
-    req: &WsRequest,
-    ik: crate::model::IkSpec,
-) -> String {
     let length_unit = entry.robot.length_unit();
-    match state.service.ik_blocking(entry, ik).await {
-        Ok(a) => {
+    match state
+        .service
+        .stream_step(entry, op, Protocol::WebSocket)
+        .await
+    {
+        Ok(answer) => {
             crate::telemetry::ws_message(true);
-            let reply = WsReply {
-                id: &req.id,
-                length_unit: Some(length_unit),
-                pose: Some(FormattedPose::new(PoseFormat::Full, a.pose)),
-                frames: None,
-                jacobian: None,
-                ik: Some(WsIk {
-                    joints: a.joints,
-                    converged: a.converged,
-                    position_error: a.position_error,
-                    orientation_error: a.orientation_error,
-                    iterations: a.iterations,
-                }),
-                error: None,
-            };
-            serde_json::to_string(&reply).unwrap_or_default()
+            ok_reply(&id, length_unit, &answer)
         }
-        Err(e) => error_reply(&req.id, &e),
+        Err(e) => error_reply(&id, &e),
     }
 }
 
-/// The reply to an FK message (with the Jacobian when asked for; its pose is
-/// then the Jacobian's, as `POST …/jacobian` answers it).
-fn fk_reply(
-    state: &AppState,
-    entry: &crate::registry::Entry,
-    req: &WsRequest,
-    joints: &[f64],
-) -> String {
-    let robot = &entry.robot;
-    let opts = req.options();
-    let (pose, frames) = match state
-        .service
-        .fk_with_frames(robot, joints, &opts, req.frames)
-    {
-        Ok(r) => r,
-        Err(e) => return error_reply(&req.id, &e),
-    };
-    let (pose, jacobian) = if req.jacobian {
-        match state.service.jacobian(robot, joints, &opts, req.frame) {
-            Ok(a) => {
-                let item = crate::api::velocity::JacobianItem::from(&a);
-                let jacobian = WsJacobian {
-                    frame: item.frame,
-                    jacobian: item.jacobian,
-                    manipulability: item.manipulability,
-                    condition_number: item.condition_number,
-                    singular: item.singular,
-                };
-                (a.pose, Some(jacobian))
-            }
-            Err(e) => return error_reply(&req.id, &e),
-        }
-    } else {
-        (pose, None)
-    };
-    entry.count_poses(Protocol::WebSocket, 1);
-    crate::telemetry::ws_message(true);
-    let format = req.pose_format;
-    let reply = WsReply {
-        id: &req.id,
-        length_unit: Some(robot.length_unit()),
-        pose: Some(FormattedPose::new(format, pose)),
-        frames: frames
-            .as_deref()
-            .map(|poses| FormattedPoses { format, poses }),
-        jacobian,
-        ik: None,
-        error: None,
+/// A successful reply: FK (pose and frames in the message's format, with the
+/// Jacobian and link transforms when asked for) or IK (always the full pose).
+fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
+    let reply = match answer {
+        StreamAnswer::Ik(a) => WsReply {
+            id,
+            length_unit: Some(length_unit),
+            pose: Some(FormattedPose::new(PoseFormat::Full, a.pose)),
+            frames: None,
+            jacobian: None,
+            ik: Some(WsIk {
+                joints: a.joints.clone(),
+                converged: a.converged,
+                position_error: a.position_error,
+                orientation_error: a.orientation_error,
+                iterations: a.iterations,
+            }),
+            link_transforms: None,
+            error: None,
+        },
+        StreamAnswer::Fk {
+            fk,
+            pose_format,
+            jacobian,
+            link_transforms,
+        } => WsReply {
+            id,
+            length_unit: Some(length_unit),
+            pose: Some(FormattedPose::new(*pose_format, fk.pose)),
+            frames: fk.frames.as_deref().map(|poses| FormattedPoses {
+                format: *pose_format,
+                poses,
+            }),
+            jacobian: jacobian.as_ref().map(WsJacobian::from),
+            ik: None,
+            link_transforms: link_transforms
+                .as_deref()
+                .map(|l| l.iter().map(LinkTransformItem::from).collect()),
+            error: None,
+        },
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }

@@ -202,6 +202,7 @@ macro_rules! reflection_suite {
                     "GetUrdf",
                     "Jacobian",
                     "JacobianBatch",
+                    "LinkTransforms",
                     "InverseKinematics",
                     "InverseKinematicsBatch",
                 ]

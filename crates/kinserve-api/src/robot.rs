@@ -1,15 +1,38 @@
-//! Conversions between protobuf messages and the model / service types.
+//! The robot model and its enums on the wire: `pb::Robot` ↔ [`RobotSpec`]
+//! (field paths as REST's: `links[3].joint`, `base.matrix`), units,
+//! conventions and closed forms. Depends on the model and [`crate::pb`] only.
 
-use super::pb;
-use crate::api::pose_format::PoseFormat;
-use crate::error::{Error, FieldViolation, Result};
-use crate::kinematics::Transform;
-use crate::model::{
-    AngleUnit, ConventionSpec, FkOptions, JointType, LengthUnit, LinkSpec, QuaternionSpec,
-    RobotSpec, TransformSpec,
+use kinserve_model::{
+    AngleUnit, ClosedForm, ConventionSpec, FieldViolation, JointType, LengthUnit, LinkSpec,
+    ModelError, QuaternionSpec, Result, RobotSpec, SymbolicMatrix, TransformSpec,
 };
-use crate::model::{ClosedForm, SymbolicMatrix};
-use crate::registry::Origin;
+
+use crate::pb;
+
+impl TryFrom<pb::Robot> for RobotSpec {
+    type Error = ModelError;
+    fn try_from(r: pb::Robot) -> Result<RobotSpec> {
+        robot_from_pb(r)
+    }
+}
+
+impl From<&RobotSpec> for pb::Robot {
+    fn from(s: &RobotSpec) -> pb::Robot {
+        robot_to_pb(s)
+    }
+}
+
+impl From<LengthUnit> for pb::LengthUnit {
+    fn from(u: LengthUnit) -> Self {
+        length_unit_to_pb(u)
+    }
+}
+
+impl From<ClosedForm> for pb::GetClosedFormResponse {
+    fn from(cf: ClosedForm) -> Self {
+        closed_form_to_pb(cf)
+    }
+}
 
 /// Proto → model robot. Field paths match REST (`links[3].joint`, `base.matrix`).
 pub fn robot_from_pb(r: pb::Robot) -> Result<RobotSpec> {
@@ -83,8 +106,8 @@ pub fn robot_from_pb(r: pb::Robot) -> Result<RobotSpec> {
         });
     }
     if !missing.is_empty() {
-        let detail = crate::model::summary(&missing);
-        return Err(Error::Malformed {
+        let detail = kinserve_model::summary(&missing);
+        return Err(ModelError::Malformed {
             detail,
             violations: missing,
         });
@@ -103,7 +126,7 @@ pub fn robot_from_pb(r: pb::Robot) -> Result<RobotSpec> {
             tool,
             links,
         }),
-        _ => Err(Error::invalid(v)),
+        _ => Err(ModelError::invalid(v)),
     }
 }
 
@@ -229,121 +252,8 @@ pub fn length_unit_to_pb(u: LengthUnit) -> pb::LengthUnit {
     }
 }
 
-/// Origin → proto enum.
-pub fn origin_to_pb(o: Origin) -> pb::RobotSource {
-    match o {
-        Origin::Builtin => pb::RobotSource::Builtin,
-        Origin::Registered => pb::RobotSource::Registered,
-    }
-}
-
-/// Request options → evaluation options and whether frames were asked for.
-/// Absent options: radians, no frames, limits checked. The deprecated
-/// `include_frames` / `skip_limit_check` count when their new twins are
-/// absent; twins that disagree are refused.
-pub fn options_from_pb(o: Option<&pb::FkOptions>) -> Result<(FkOptions, bool)> {
-    let Some(o) = o else {
-        return Ok((FkOptions::default(), false));
-    };
-    let angle_unit = match pb::AngleUnit::try_from(o.angle_unit) {
-        Ok(pb::AngleUnit::Unspecified | pb::AngleUnit::Rad) => AngleUnit::Rad,
-        Ok(pb::AngleUnit::Deg) => AngleUnit::Deg,
-        Err(_) => {
-            return Err(Error::malformed_field(
-                "options.angle_unit",
-                "unknown angle unit: use ANGLE_UNIT_RAD or ANGLE_UNIT_DEG",
-            ));
-        }
-    };
-    #[allow(deprecated, reason = "the old names are still honoured")]
-    let (old_frames, old_check) = (o.include_frames, !o.skip_limit_check);
-    let frames = twin(
-        "options.frames",
-        "include_frames",
-        o.frames,
-        old_frames,
-        false,
-    )?;
-    let check = twin(
-        "options.check_limits",
-        "skip_limit_check",
-        o.check_limits,
-        old_check,
-        true,
-    )?;
-    Ok((FkOptions::new(Some(angle_unit), Some(check)), frames))
-}
-
-/// A new option and its deprecated twin: the new one when present (it must
-/// not contradict an old one that was set away from its default), else the old.
-fn twin(field: &str, old_name: &str, new: Option<bool>, old: bool, default: bool) -> Result<bool> {
-    match new {
-        Some(v) if old != default && v != old => Err(Error::malformed_field(
-            field,
-            format!("contradicts the deprecated `{old_name}`: give only the new field"),
-        )),
-        Some(v) => Ok(v),
-        None => Ok(old),
-    }
-}
-
-/// `options.pose_format` → pose format (absent options or unspecified: full).
-/// A value out of range is malformed, naming `options.pose_format` (like an
-/// unknown `angle_unit`).
-pub fn pose_format_from_pb(o: Option<&pb::FkOptions>) -> Result<PoseFormat> {
-    let Some(o) = o else {
-        return Ok(PoseFormat::Full);
-    };
-    match pb::PoseFormat::try_from(o.pose_format) {
-        Ok(pb::PoseFormat::Unspecified | pb::PoseFormat::Full) => Ok(PoseFormat::Full),
-        Ok(pb::PoseFormat::Matrix) => Ok(PoseFormat::Matrix),
-        Ok(pb::PoseFormat::Position) => Ok(PoseFormat::Position),
-        Err(_) => Err(Error::malformed_field(
-            "options.pose_format",
-            "unknown pose format: use POSE_FORMAT_FULL, POSE_FORMAT_MATRIX or POSE_FORMAT_POSITION",
-        )),
-    }
-}
-
-/// Poses in a compact format as one packed message (one pre-sized vector of
-/// numbers, nothing per pose); `None` for `full`, which answers with Pose messages.
-pub fn packed_to_pb<'a>(
-    format: PoseFormat,
-    poses: impl ExactSizeIterator<Item = &'a Transform>,
-) -> Option<pb::PackedPoses> {
-    let format_pb = match format {
-        PoseFormat::Full => return None,
-        PoseFormat::Matrix => pb::PoseFormat::Matrix,
-        PoseFormat::Position => pb::PoseFormat::Position,
-    };
-    Some(pb::PackedPoses {
-        format: format_pb as i32,
-        values: format.pack(poses),
-    })
-}
-
-/// Transform → proto pose.
-pub fn pose_to_pb(t: &Transform) -> pb::Pose {
-    let m = t.matrix();
-    let [w, x, y, z] = t.quaternion();
-    let [roll, pitch, yaw] = t.rpy();
-    let p = t.position();
-    pb::Pose {
-        matrix: m.iter().flat_map(|r| r.iter().copied()).collect(),
-        position: Some(pb::Vector3 {
-            x: p[0],
-            y: p[1],
-            z: p[2],
-        }),
-        #[allow(deprecated, reason = "still filled for older clients")]
-        orientation: Some(pb::Quaternion { w, x, y, z }),
-        rpy: Some(pb::Rpy { roll, pitch, yaw }),
-        quaternion: Some(pb::Quaternion { w, x, y, z }),
-    }
-}
-
 /// A closed form as its protobuf message.
-pub fn closed_form_to_pb(cf: ClosedForm) -> pb::GetClosedFormResponse {
+fn closed_form_to_pb(cf: ClosedForm) -> pb::GetClosedFormResponse {
     let matrix = |m: SymbolicMatrix| pb::SymbolicMatrix {
         text: m.text.into_iter().flatten().collect(),
         latex: m.latex,

@@ -1,0 +1,146 @@
+//! FK on the wire: `pb::FkOptions` and the FK requests → [`FkSpec`] /
+//! [`FkBatchSpec`] (field paths as REST's: `options.angle_unit`,
+//! `options.pose_format`, `configurations[3][1]` after validation). Depends on
+//! the model and [`crate::pb`] only.
+
+use kinserve_model::{
+    AngleUnit, Configurations, FkBatchSpec, FkOptions, FkSpec, LinkTransformsSpec, ModelError,
+    PoseFormat, Result,
+};
+
+use crate::pb;
+
+/// What the FK requests' `options` say, read once.
+pub trait FkOptionsExt {
+    /// Evaluation options, whether frames were asked for, and the pose format.
+    fn read(&self) -> Result<(FkOptions, bool, PoseFormat)>;
+}
+
+impl FkOptionsExt for Option<pb::FkOptions> {
+    fn read(&self) -> Result<(FkOptions, bool, PoseFormat)> {
+        let (options, frames) = options_from_pb(self.as_ref())?;
+        Ok((options, frames, pose_format_from_pb(self.as_ref())?))
+    }
+}
+
+impl TryFrom<pb::ForwardKinematicsRequest> for FkSpec {
+    type Error = ModelError;
+    fn try_from(r: pb::ForwardKinematicsRequest) -> Result<FkSpec> {
+        let (options, frames, pose_format) = r.options.read()?;
+        Ok(FkSpec {
+            joints: r.joints,
+            options,
+            frames,
+            pose_format,
+        })
+    }
+}
+
+impl TryFrom<pb::ForwardKinematicsBatchRequest> for FkBatchSpec {
+    type Error = ModelError;
+    fn try_from(r: pb::ForwardKinematicsBatchRequest) -> Result<FkBatchSpec> {
+        let (options, frames, pose_format) = r.options.read()?;
+        if frames {
+            return Err(ModelError::malformed_field(
+                "options.frames",
+                "batch FK returns tool poses only: ask ForwardKinematics or the stream for frames",
+            ));
+        }
+        Ok(FkBatchSpec {
+            configurations: configurations(&r.configurations),
+            options,
+            pose_format,
+        })
+    }
+}
+
+impl TryFrom<pb::LinkTransformsRequest> for LinkTransformsSpec {
+    type Error = ModelError;
+    fn try_from(r: pb::LinkTransformsRequest) -> Result<LinkTransformsSpec> {
+        let (options, _, _) = r.options.read()?;
+        Ok(LinkTransformsSpec {
+            joints: r.joints,
+            options,
+        })
+    }
+}
+
+/// The configurations of a batch message, back to back in one buffer.
+pub fn configurations(rows: &[pb::JointConfiguration]) -> Configurations {
+    let mut out = Configurations {
+        values: Vec::with_capacity(rows.iter().map(|c| c.joints.len()).sum()),
+        lens: Vec::with_capacity(rows.len()),
+    };
+    for c in rows {
+        out.push(&c.joints);
+    }
+    out
+}
+
+/// Request options → evaluation options and whether frames were asked for.
+/// Absent options: radians, no frames, limits checked. The deprecated
+/// `include_frames` / `skip_limit_check` count when their new twins are
+/// absent; twins that disagree are refused.
+pub fn options_from_pb(o: Option<&pb::FkOptions>) -> Result<(FkOptions, bool)> {
+    let Some(o) = o else {
+        return Ok((FkOptions::default(), false));
+    };
+    let angle_unit = match pb::AngleUnit::try_from(o.angle_unit) {
+        Ok(pb::AngleUnit::Unspecified | pb::AngleUnit::Rad) => AngleUnit::Rad,
+        Ok(pb::AngleUnit::Deg) => AngleUnit::Deg,
+        Err(_) => {
+            return Err(ModelError::malformed_field(
+                "options.angle_unit",
+                "unknown angle unit: use ANGLE_UNIT_RAD or ANGLE_UNIT_DEG",
+            ));
+        }
+    };
+    #[allow(deprecated, reason = "the old names are still honoured")]
+    let (old_frames, old_check) = (o.include_frames, !o.skip_limit_check);
+    let frames = twin(
+        "options.frames",
+        "include_frames",
+        o.frames,
+        old_frames,
+        false,
+    )?;
+    let check = twin(
+        "options.check_limits",
+        "skip_limit_check",
+        o.check_limits,
+        old_check,
+        true,
+    )?;
+    Ok((FkOptions::new(Some(angle_unit), Some(check)), frames))
+}
+
+/// A new option and its deprecated twin: the new one when present (it must
+/// not contradict an old one that was set away from its default), else the old.
+fn twin(field: &str, old_name: &str, new: Option<bool>, old: bool, default: bool) -> Result<bool> {
+    match new {
+        Some(v) if old != default && v != old => Err(ModelError::malformed_field(
+            field,
+            format!("contradicts the deprecated `{old_name}`: give only the new field"),
+        )),
+        Some(v) => Ok(v),
+        None => Ok(old),
+    }
+}
+
+/// `options.pose_format` → pose format (absent options or unspecified: full).
+/// A value out of range is malformed, naming `options.pose_format` (like an
+/// unknown `angle_unit`).
+pub fn pose_format_from_pb(o: Option<&pb::FkOptions>) -> Result<PoseFormat> {
+    let Some(o) = o else {
+        return Ok(PoseFormat::Full);
+    };
+    match pb::PoseFormat::try_from(o.pose_format) {
+        Ok(pb::PoseFormat::Unspecified | pb::PoseFormat::Full) => Ok(PoseFormat::Full),
+        Ok(pb::PoseFormat::Matrix) => Ok(PoseFormat::Matrix),
+        Ok(pb::PoseFormat::Position) => Ok(PoseFormat::Position),
+        Err(_) => Err(ModelError::malformed_field(
+            "options.pose_format",
+            "unknown pose format: use POSE_FORMAT_FULL, POSE_FORMAT_MATRIX or POSE_FORMAT_POSITION",
+        )),
+    }
+}

@@ -1,0 +1,338 @@
+//! The service methods of `kinematics.v1.KinematicsService`: admission (a
+//! request permit per unary call), the message → model request conversion
+//! (`kinserve-api`'s `TryFrom` impls, with REST's field paths), one service
+//! call, the answer back as its message. The stream's loop is in `stream`.
+//! Depends on the service, the registry's types and `kinserve-api`.
+
+use tonic::{Request, Response, Status, Streaming};
+
+use super::pb::kinematics_service_server::KinematicsService;
+use super::stream::{End, FkStream, close_if_stuck};
+use super::{GrpcService, authorization, pb, streams};
+use crate::error::Error;
+use crate::model::{
+    FkBatchSpec, FkSpec, IkBatchSpec, IkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
+    RobotSpec,
+};
+use crate::registry::{Condition, Entry, Origin, PutMode};
+use crate::service::FkAnswer;
+use crate::telemetry::{Protocol, StreamGuard};
+use kinserve_api::{packed_to_pb, pose_to_pb};
+
+/// Origin → proto enum.
+fn origin_to_pb(o: Origin) -> pb::RobotSource {
+    match o {
+        Origin::Builtin => pb::RobotSource::Builtin,
+        Origin::Registered => pb::RobotSource::Registered,
+    }
+}
+
+/// The robot's name and length unit as the answers carry them.
+fn names(entry: &Entry) -> (String, i32) {
+    (
+        entry.robot.name().to_string(),
+        pb::LengthUnit::from(entry.robot.length_unit()) as i32,
+    )
+}
+
+#[tonic::async_trait]
+impl KinematicsService for GrpcService {
+    async fn list_robots(
+        &self,
+        req: Request<pb::ListRobotsRequest>,
+    ) -> Result<Response<pb::ListRobotsResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let size = u32::try_from(req.page_size).map_err(|_| {
+            Error::malformed_field(
+                "page_size",
+                "must not be negative (0 means the default, 100)",
+            )
+        })?;
+        let (page, next) = self.service.list_page(size, &req.page_token)?;
+        let robots = page
+            .into_iter()
+            .map(|s| pb::RobotSummary {
+                name: s.name,
+                dof: s.dof as u32,
+                convention: kinserve_api::convention_to_pb(s.convention) as i32,
+                length_unit: pb::LengthUnit::from(s.length_unit) as i32,
+                source: origin_to_pb(s.origin) as i32,
+            })
+            .collect();
+        Ok(Response::new(pb::ListRobotsResponse {
+            robots,
+            next_page_token: next.unwrap_or_default(),
+        }))
+    }
+
+    async fn get_robot(
+        &self,
+        req: Request<pb::GetRobotRequest>,
+    ) -> Result<Response<pb::GetRobotResponse>, Status> {
+        let _permit = self.admit()?;
+        let entry = self.service.robot(&req.get_ref().name)?;
+        Ok(Response::new(pb::GetRobotResponse {
+            robot: Some(pb::Robot::from(entry.robot.spec())),
+            source: origin_to_pb(entry.origin) as i32,
+            etag: entry.etag().to_string(),
+        }))
+    }
+
+    async fn register_robot(
+        &self,
+        req: Request<pb::RegisterRobotRequest>,
+    ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
+        self.service.authorize_header(authorization(&req)?)?;
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let robot = req
+            .robot
+            .ok_or_else(|| Error::invalid_field("robot", "is required"))?;
+        let spec = RobotSpec::try_from(robot).map_err(Error::from)?;
+        let mode = if req.replace {
+            PutMode::Upsert
+        } else {
+            PutMode::Create
+        };
+        let cond = match (req.etag.as_str(), req.replace) {
+            ("", _) => Condition::Any,
+            (_, false) => {
+                return Err(Error::malformed_field(
+                    "etag",
+                    "a condition on the current version needs replace: true (replace: false already means create only)",
+                )
+                .into());
+            }
+            (tag, true) => Condition::if_match(tag, "etag")?,
+        };
+        let (entry, created) = self.service.register(spec, mode, cond).await?;
+        Ok(Response::new(pb::RegisterRobotResponse {
+            robot: Some(pb::Robot::from(entry.robot.spec())),
+            created,
+            etag: entry.etag().to_string(),
+        }))
+    }
+
+    async fn delete_robot(
+        &self,
+        req: Request<pb::DeleteRobotRequest>,
+    ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
+        self.service.authorize_header(authorization(&req)?)?;
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let cond = match req.etag.as_str() {
+            "" => Condition::Any,
+            tag => Condition::if_match(tag, "etag")?,
+        };
+        self.service.delete(&req.name, cond).await?;
+        Ok(Response::new(pb::DeleteRobotResponse {}))
+    }
+
+    async fn forward_kinematics(
+        &self,
+        req: Request<pb::ForwardKinematicsRequest>,
+    ) -> Result<Response<pb::ForwardKinematicsResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let spec = FkSpec::try_from(req).map_err(Error::from)?;
+        let FkAnswer { pose, frames } = self.service.fk(&entry.robot, &spec)?;
+        entry.count_poses(Protocol::Grpc, 1);
+        let frames = frames.unwrap_or_default();
+        let format = spec.pose_format;
+        let mut resp = pb::ForwardKinematicsResponse {
+            robot: entry.robot.name().to_string(),
+            length_unit: pb::LengthUnit::from(entry.robot.length_unit()) as i32,
+            ..Default::default()
+        };
+        match packed_to_pb(format, std::iter::once(&pose)) {
+            None => {
+                resp.pose = Some(pose_to_pb(&pose));
+                resp.frames = frames.iter().map(pose_to_pb).collect();
+            }
+            Some(packed) => {
+                resp.packed_pose = Some(packed);
+                resp.packed_frames = spec
+                    .frames
+                    .then(|| packed_to_pb(format, frames.iter()))
+                    .flatten();
+            }
+        }
+        Ok(Response::new(resp))
+    }
+
+    async fn forward_kinematics_batch(
+        &self,
+        req: Request<pb::ForwardKinematicsBatchRequest>,
+    ) -> Result<Response<pb::ForwardKinematicsBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        self.service.check_batch_size(req.configurations.len())?;
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let spec = FkBatchSpec::try_from(req).map_err(Error::from)?;
+        let poses = self.service.fk_batch(&entry.robot, &spec)?;
+        entry.count_poses(Protocol::Grpc, poses.len() as u64);
+        let packed_poses = packed_to_pb(spec.pose_format, poses.iter());
+        let poses = match packed_poses {
+            Some(_) => Vec::new(),
+            None => poses.iter().map(pose_to_pb).collect(),
+        };
+        Ok(Response::new(pb::ForwardKinematicsBatchResponse {
+            robot: entry.robot.name().to_string(),
+            length_unit: pb::LengthUnit::from(entry.robot.length_unit()) as i32,
+            poses,
+            packed_poses,
+        }))
+    }
+
+    type StreamForwardKinematicsStream = FkStream;
+
+    async fn stream_forward_kinematics(
+        &self,
+        req: Request<Streaming<pb::StreamForwardKinematicsRequest>>,
+    ) -> Result<Response<Self::StreamForwardKinematicsStream>, Status> {
+        let connection = req.extensions().get::<streams::GrpcConnInfo>().cloned();
+        let permit = self
+            .streams
+            .try_open(connection.as_ref().map(|c| &c.streams))
+            .map_err(|e| {
+                metrics::counter!("kinserve_grpc_rejected_total", "reason" => "streams")
+                    .increment(1);
+                Status::from(e)
+            })?;
+        let inbound = req.into_inner();
+        let (replies, outbound) = streams::channel();
+        let this = self.clone();
+        tokio::spawn(async move {
+            // The stream's budget slot, never a request permit: open streams
+            // do not take from the requests in flight.
+            let stream = StreamGuard::open(Protocol::Grpc);
+            let end = this.pump(inbound, &replies).await;
+            drop((permit, stream));
+            match end {
+                End::Quiet => {}
+                End::Status(status) => {
+                    replies.end(status);
+                }
+                End::Closed(status) => {
+                    let done = replies.end(status);
+                    close_if_stuck(done, connection).await;
+                }
+            }
+        });
+        Ok(Response::new(Box::pin(outbound)))
+    }
+
+    async fn jacobian(
+        &self,
+        req: Request<pb::JacobianRequest>,
+    ) -> Result<Response<pb::JacobianResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let spec = JacobianSpec::try_from(req).map_err(Error::from)?;
+        let answer = self.service.jacobian(&entry.robot, &spec)?;
+        entry.count_poses(Protocol::Grpc, 1);
+        Ok(Response::new(pb::JacobianResponse {
+            robot: entry.robot.name().to_string(),
+            length_unit: pb::LengthUnit::from(entry.robot.length_unit()) as i32,
+            result: Some(pb::JacobianResult::from(&answer)),
+        }))
+    }
+
+    async fn jacobian_batch(
+        &self,
+        req: Request<pb::JacobianBatchRequest>,
+    ) -> Result<Response<pb::JacobianBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        self.service.check_batch_size(req.configurations.len())?;
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let spec = JacobianBatchSpec::try_from(req).map_err(Error::from)?;
+        let answers = self.service.jacobian_batch(&entry.robot, &spec)?;
+        entry.count_poses(Protocol::Grpc, answers.len() as u64);
+        Ok(Response::new(pb::JacobianBatchResponse {
+            robot: entry.robot.name().to_string(),
+            length_unit: pb::LengthUnit::from(entry.robot.length_unit()) as i32,
+            results: answers.iter().map(pb::JacobianResult::from).collect(),
+        }))
+    }
+
+    async fn inverse_kinematics(
+        &self,
+        req: Request<pb::InverseKinematicsRequest>,
+    ) -> Result<Response<pb::InverseKinematicsResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let (robot, length_unit) = names(&entry);
+        let spec = IkSpec::try_from(req).map_err(Error::from)?;
+        let angle_unit = pb::AngleUnit::from(spec.angle_unit) as i32;
+        let answer = self.service.ik_blocking(entry, spec).await?;
+        Ok(Response::new(pb::InverseKinematicsResponse {
+            robot,
+            length_unit,
+            angle_unit,
+            result: Some(pb::InverseKinematicsResult::from(&answer)),
+        }))
+    }
+
+    async fn inverse_kinematics_batch(
+        &self,
+        req: Request<pb::InverseKinematicsBatchRequest>,
+    ) -> Result<Response<pb::InverseKinematicsBatchResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let (robot, length_unit) = names(&entry);
+        let spec = IkBatchSpec::try_from(req).map_err(Error::from)?;
+        let angle_unit = pb::AngleUnit::from(spec.angle_unit) as i32;
+        let answers = self.service.ik_batch_blocking(entry, spec).await?;
+        Ok(Response::new(pb::InverseKinematicsBatchResponse {
+            robot,
+            length_unit,
+            angle_unit,
+            results: answers
+                .iter()
+                .map(pb::InverseKinematicsResult::from)
+                .collect(),
+        }))
+    }
+
+    async fn link_transforms(
+        &self,
+        req: Request<pb::LinkTransformsRequest>,
+    ) -> Result<Response<pb::LinkTransformsResponse>, Status> {
+        let _permit = self.admit()?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let spec = LinkTransformsSpec::try_from(req).map_err(Error::from)?;
+        let links = self.service.link_transforms(&entry.robot, &spec)?;
+        let (robot, length_unit) = names(&entry);
+        Ok(Response::new(pb::LinkTransformsResponse {
+            robot,
+            length_unit,
+            link_transforms: links.iter().map(pb::LinkTransform::from).collect(),
+        }))
+    }
+
+    async fn get_closed_form(
+        &self,
+        req: Request<pb::GetClosedFormRequest>,
+    ) -> Result<Response<pb::GetClosedFormResponse>, Status> {
+        let _permit = self.admit()?;
+        let cf = self.service.closed_form(&req.get_ref().robot)?;
+        Ok(Response::new(pb::GetClosedFormResponse::from(cf)))
+    }
+
+    async fn get_urdf(
+        &self,
+        req: Request<pb::GetUrdfRequest>,
+    ) -> Result<Response<pb::GetUrdfResponse>, Status> {
+        let _permit = self.admit()?;
+        let robot = req.into_inner().robot;
+        let urdf = self.service.urdf(&robot)?;
+        Ok(Response::new(pb::GetUrdfResponse { robot, urdf }))
+    }
+}

@@ -1,0 +1,222 @@
+//! The bidirectional FK stream: the task that reads a stream's messages in
+//! order, answers each through the one stream step shared with the WebSocket
+//! ([`Service::stream_step`](crate::service::Service::stream_step)) and queues
+//! its reply with bounded buffering, and how the stream ends (idle timeout,
+//! shutdown, a stuck client window). Depends on the service, `streams` and
+//! `kinserve-api`'s conversions.
+
+use std::pin::Pin;
+
+use futures_util::FutureExt;
+use tokio_stream::Stream;
+use tokio_util::sync::CancellationToken;
+use tonic::{Status, Streaming};
+
+use super::{GrpcService, oversize, pb, status, streams};
+use crate::error::Error;
+use crate::model::StreamOp;
+use crate::service::StreamAnswer;
+use crate::telemetry::Protocol;
+use kinserve_api::{packed_to_pb, pose_to_pb};
+
+impl GrpcService {
+    /// The response to one stream message: FK (with the Jacobian and link
+    /// transforms when asked for) or IK. `Err` only for a panic (the stream
+    /// then ends INTERNAL).
+    async fn stream_reply(
+        &self,
+        mut msg: pb::StreamForwardKinematicsRequest,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        let id = msg.id;
+        let robot = std::mem::take(&mut msg.robot);
+        let answer = std::panic::AssertUnwindSafe(self.stream_answer(robot, msg))
+            .catch_unwind()
+            .await
+            .map_err(|panic| {
+                super::super::panic_to_error(panic.as_ref(), "gRPC FK stream handler")
+            })?;
+        Ok(match answer {
+            Ok(mut resp) => {
+                resp.id = id;
+                resp
+            }
+            Err(e) => pb::StreamForwardKinematicsResponse {
+                id,
+                result: Some(pb::stream_forward_kinematics_response::Result::Error(
+                    status::to_rpc_status(&e),
+                )),
+                ..Default::default()
+            },
+        })
+    }
+
+    async fn stream_answer(
+        &self,
+        robot: String,
+        mut msg: pb::StreamForwardKinematicsRequest,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        // The robot is named in the message: kept there for `ik.robot`'s check.
+        msg.robot = robot;
+        let entry = self.service.robot_at(&msg.robot, "robot")?;
+        let op = StreamOp::try_from(msg)?;
+        let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
+        let answer = self.service.stream_step(entry, op, Protocol::Grpc).await?;
+        Ok(stream_response(answer, unit))
+    }
+}
+
+/// A stream answer as its message (Pose messages for `full`, PackedPoses for
+/// a compact `pose_format`).
+fn stream_response(answer: StreamAnswer, unit: i32) -> pb::StreamForwardKinematicsResponse {
+    use pb::stream_forward_kinematics_response::Result as Answer;
+    match answer {
+        StreamAnswer::Ik(a) => {
+            let result = pb::InverseKinematicsResult::from(&a);
+            pb::StreamForwardKinematicsResponse {
+                result: result.pose.clone().map(Answer::Pose),
+                length_unit: unit,
+                ik: Some(Box::new(result)),
+                ..Default::default()
+            }
+        }
+        StreamAnswer::Fk {
+            fk,
+            pose_format,
+            jacobian,
+            link_transforms,
+        } => {
+            let frames = fk.frames.unwrap_or_default();
+            let (result, frames, packed_frames) =
+                match packed_to_pb(pose_format, std::iter::once(&fk.pose)) {
+                    None => (
+                        Answer::Pose(pose_to_pb(&fk.pose)),
+                        frames.iter().map(pose_to_pb).collect(),
+                        None,
+                    ),
+                    Some(packed) => (
+                        Answer::PackedPose(packed),
+                        Vec::new(),
+                        packed_to_pb(pose_format, frames.iter()).filter(|p| !p.values.is_empty()),
+                    ),
+                };
+            pb::StreamForwardKinematicsResponse {
+                id: 0,
+                result: Some(result),
+                length_unit: unit,
+                frames,
+                jacobian: jacobian.map(|j| Box::new(pb::JacobianResult::from(&j))),
+                ik: None,
+                packed_frames,
+                link_transforms: link_transforms
+                    .unwrap_or_default()
+                    .iter()
+                    .map(pb::LinkTransform::from)
+                    .collect(),
+            }
+        }
+    }
+}
+
+impl GrpcService {
+    /// Answers a stream's messages in order until it ends; returns how it ends.
+    ///
+    /// A stream that makes no progress in either direction for the idle
+    /// timeout is closed: waiting for the client's next message and waiting
+    /// for it to take a reply (its receive window closed: the reply queue
+    /// stays full) both count as no progress.
+    pub(super) async fn pump(
+        &self,
+        mut inbound: Streaming<pb::StreamForwardKinematicsRequest>,
+        replies: &streams::Replies<pb::StreamForwardKinematicsResponse>,
+    ) -> End {
+        let idle = self.settings.stream_idle_timeout;
+        let idle_status = || {
+            Status::deadline_exceeded(format!(
+                "stream idle timeout: no message from the client and no reply taken for {idle:?}"
+            ))
+        };
+        loop {
+            if self.shutdown.is_cancelled() {
+                return End::Closed(Status::unavailable("server shutting down"));
+            }
+            // A message already received is taken at once; only when none is
+            // there does the task wait (shutdown, cancel, idle timeout). One
+            // poll per message instead of three registrations.
+            let ready = inbound.message().now_or_never();
+            let next = match ready {
+                Some(r) => Ok(r),
+                None => tokio::select! {
+                    _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                    _ = replies.closed() => return End::Quiet, // client cancelled
+                    r = tokio::time::timeout(idle, inbound.message()) => r,
+                },
+            };
+            let msg = match next {
+                Err(_) => return End::Closed(idle_status()),
+                Ok(Ok(Some(m))) => m,
+                Ok(Ok(None)) => return End::Quiet,
+                // Undecodable or oversized message (or the buffered bytes
+                // budget spent): report it and end (the transport state is unknown).
+                Ok(Err(status)) => return End::Status(oversize::remap_status(status)),
+            };
+            // A bug (panic) while answering ends the stream with INTERNAL, not
+            // with a clean end of stream the client would take for success.
+            let resp = match self.stream_reply(msg).await {
+                Ok(resp) => resp,
+                Err(e) => return End::Status(Status::from(e)),
+            };
+            // Queued at once when there is room; else waits while the client
+            // reads slowly (bounded buffering, end-to-end flow control), but
+            // not longer than the idle timeout.
+            let resp = match replies.try_send(resp) {
+                Ok(()) => continue,
+                Err(None) => return End::Quiet,
+                Err(Some(resp)) => resp,
+            };
+            let sent = tokio::select! {
+                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                r = tokio::time::timeout(idle, replies.send(resp)) => r,
+            };
+            match sent {
+                Ok(true) => {}
+                Ok(false) => return End::Quiet,
+                Err(_) => return End::Closed(idle_status()),
+            }
+        }
+    }
+}
+
+/// How a stream's task ended.
+pub(super) enum End {
+    /// Cleanly, or the client went away: nothing to send.
+    Quiet,
+    /// With a status for the client.
+    Status(Status),
+    /// Closed by the server (idle timeout, shutdown) while the client may
+    /// not be taking its replies.
+    Closed(Status),
+}
+
+/// After the server closed a stream (idle timeout, shutdown): if its response is not done within
+/// [`streams::STUCK_GRACE`] (the HTTP/2 layer still waits for the client's
+/// window to send a reply or the final status), closes its connection, the
+/// only way to end that stream (see `streams`). A client that reads gets
+/// the final status at once and keeps its connection.
+pub(super) async fn close_if_stuck(
+    done: CancellationToken,
+    connection: Option<streams::GrpcConnInfo>,
+) {
+    let finished = tokio::time::timeout(streams::STUCK_GRACE, done.cancelled()).await;
+    if finished.is_err()
+        && let Some(c) = connection
+    {
+        tracing::info!(
+            "closing a gRPC connection: a closed stream on it stays blocked on the client's receive window"
+        );
+        c.close.cancel();
+    }
+}
+
+pub(super) type FkStream = Pin<
+    Box<dyn Stream<Item = Result<pb::StreamForwardKinematicsResponse, Status>> + Send + 'static>,
+>;
