@@ -6,6 +6,7 @@ mod contract;
 mod crash;
 mod errors;
 mod etags;
+mod generated_clients;
 mod grpc;
 mod helpers;
 mod hostile;
