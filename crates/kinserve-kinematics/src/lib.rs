@@ -23,6 +23,7 @@
 mod chain;
 #[cfg(feature = "nalgebra")]
 mod convert;
+mod dh;
 mod eval;
 #[cfg(feature = "ik")]
 pub mod ik;
@@ -34,7 +35,8 @@ pub mod sincos;
 mod step;
 mod transform;
 
-pub use chain::{Chain, Convention, DhRow, JointKind, link_transform};
+pub use chain::Chain;
+pub use dh::{Convention, DhRow, JointKind, link_transform};
 pub use jacobian::{Jacobian, JacobianFrame};
 #[cfg(feature = "nalgebra")]
 pub use jacobian::{SINGULAR_THRESHOLD, VelocityMeasures};
