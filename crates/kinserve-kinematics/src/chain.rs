@@ -33,6 +33,30 @@ pub struct Chain {
 
 impl Chain {
     /// Compiles a chain from its rows, base (world ← frame 0) and tool (flange ← tool tip).
+    /// An identity tool is dropped ([`Chain::tool`] is then `None`).
+    ///
+    /// ```
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+    ///
+    /// let row = |kind, a, d| DhRow { kind, a, alpha: 0.0, d, theta: 0.0 };
+    /// let rows = [
+    ///     row(JointKind::Revolute, 0.4, 0.0),
+    ///     row(JointKind::Fixed, 0.1, 0.0), // a constant offset, no joint variable
+    ///     row(JointKind::Prismatic, 0.0, 0.2),
+    /// ];
+    /// let base = Transform::translation(0.0, 0.0, 1.0); // on a 1 m pedestal
+    /// let tool = Transform::translation(0.0, 0.0, 0.05); // 5 cm along the flange z
+    /// let chain = Chain::new(Convention::Standard, &rows, base, Some(tool));
+    /// assert_eq!((chain.dof(), chain.rows()), (2, 3));
+    /// assert!(chain.tool().is_some());
+    ///
+    /// // Home pose: x = 0.4 + 0.1, z = 1 + 0.2 + 0.05.
+    /// let [x, y, z] = chain.forward(&[0.0, 0.0], 1.0).position();
+    /// assert!((x - 0.5).abs() < 1e-12 && y.abs() < 1e-12 && (z - 1.25).abs() < 1e-12);
+    ///
+    /// let bare = Chain::new(Convention::Standard, &rows, base, Some(Transform::IDENTITY));
+    /// assert!(bare.tool().is_none());
+    /// ```
     pub fn new(
         convention: Convention,
         rows: &[DhRow],
@@ -104,6 +128,32 @@ impl Chain {
     ///
     /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
+    ///
+    /// The result is the textbook product of the link matrices
+    /// ([`link_transform`](crate::link_transform)):
+    ///
+    /// ```
+    /// use std::f64::consts::{FRAC_PI_2, PI};
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform, link_transform};
+    ///
+    /// let rows = [
+    ///     DhRow { kind: JointKind::Revolute, a: 0.0, alpha: 0.0, d: 0.3, theta: 0.0 },
+    ///     DhRow { kind: JointKind::Revolute, a: 0.0, alpha: -FRAC_PI_2, d: 0.0, theta: 0.0 },
+    ///     DhRow { kind: JointKind::Revolute, a: 0.4, alpha: 0.0, d: 0.0, theta: 0.0 },
+    /// ];
+    /// let base = Transform::translation(0.1, 0.0, 0.0);
+    /// let chain = Chain::new(Convention::Modified, &rows, base, None);
+    ///
+    /// let q_deg = [30.0, -45.0, 60.0];
+    /// let pose = chain.forward(&q_deg, PI / 180.0);
+    ///
+    /// let mut plain = base;
+    /// for (row, q) in rows.iter().zip(q_deg) {
+    ///     plain = plain * link_transform(Convention::Modified, row, q.to_radians());
+    /// }
+    /// assert!(pose.max_abs_diff(&plain) < 1e-12);
+    /// assert!(pose.rigidity_error() < 1e-12);
+    /// ```
     #[inline]
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
         // SAFETY: `Kernel::best` only returns a kernel this CPU supports.

@@ -17,6 +17,31 @@ impl Robot {
     /// Checks a joint vector — count, finiteness, prismatic values within
     /// ±[`MAX_MAGNITUDE`] and (if asked) limits — and returns it as the
     /// validated [`JointVector`] that FK accepts. Field paths are `joints[i]`.
+    ///
+    /// ```
+    /// use kinserve_model::{FkOptions, ModelLimits, Robot};
+    ///
+    /// let robot = Robot::from_json(br#"{"name": "slide-arm", "convention": "standard", "links": [
+    ///     {"joint": "revolute", "a": 0.4, "alpha": 0, "d": 0, "theta": 0, "limits": [-1.5, 1.5]},
+    ///     {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0.1, "theta": 0, "limits": [0, 0.2]}
+    /// ]}"#, &ModelLimits::default())?;
+    /// let opts = FkOptions::default(); // rad, limits checked
+    ///
+    /// let q = robot.check_joints(&[0.5, 0.1], &opts)?;
+    /// assert_eq!(q.values(), &[0.5, 0.1]);
+    /// let [x, y, z] = q.fk().position(); // Rz(0.5)·Tx(0.4), then Tz(0.1 + 0.1)
+    /// assert!((x - 0.4 * 0.5f64.cos()).abs() < 1e-12);
+    /// assert!((y - 0.4 * 0.5f64.sin()).abs() < 1e-12 && (z - 0.2).abs() < 1e-12);
+    ///
+    /// // Wrong count, a non-finite value, a value beyond its limits:
+    /// let field = |q: &[f64]| robot.check_joints(q, &opts).unwrap_err().violations()[0].field.clone();
+    /// assert_eq!(field(&[0.5]), "joints");
+    /// assert_eq!(field(&[0.5, f64::NAN]), "joints[1]");
+    /// assert_eq!(field(&[2.0, 0.1]), "joints[0]");
+    /// // ... which passes when limits are not checked.
+    /// assert!(robot.check_joints(&[2.0, 0.1], &FkOptions::new(None, Some(false))).is_ok());
+    /// # Ok::<(), kinserve_model::ModelError>(())
+    /// ```
     pub fn check_joints<'a>(&'a self, q: &'a [f64], opts: &FkOptions) -> Result<JointVector<'a>> {
         self.check_joints_at(q, opts, || "joints".to_string())
     }
