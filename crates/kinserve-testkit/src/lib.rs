@@ -3,7 +3,7 @@
 //!
 //! It owns the plain reference FK product that the fast paths are tested
 //! against ([`mod@reference`]), the property checks shared by the `cargo fuzz`
-//! targets in `fuzz/` and the corpus replay test ([`fuzzing`]), and the
+//! targets in `fuzz/` and the corpus replay test (`fuzzing`), and the
 //! built-in robot files as bytes for those checks.
 //!
 //! Features: the reference path needs only the math crates
