@@ -23,7 +23,7 @@ WORKDIR /build
 
 # 1) Dependency layer: only the manifests (the root package and every member
 #    crate under crates/), with stub sources in place of the real ones; rebuilt only when Cargo.toml or Cargo.lock change. Every
-#    [[bin]]/[[bench]]/[[test]]/[[example]] the manifest names (at its
+#    [[bin]]/[[bench]]/[[test]]/[[example]] a manifest names (at its
 #    explicit or default path) is listed in .stub-targets and gets a stub,
 #    so cargo accepts the manifest as it is without benches/ or tests/ in
 #    the build context. The crate downloads live in a cache mount, shared by
@@ -36,14 +36,14 @@ COPY crates/kinserve-load/Cargo.toml crates/kinserve-load/
 COPY crates/kinserve-testkit/Cargo.toml crates/kinserve-testkit/
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
     set -eu; \
-    awk ' \
-      function flush() { if (kind != "") print (path != "" ? path : dir[kind] name ".rs"); kind = ""; name = ""; path = "" } \
+    for m in Cargo.toml crates/*/Cargo.toml; do awk -v pre="${m%Cargo.toml}" ' \
+      function flush() { if (kind != "") print pre (path != "" ? path : dir[kind] name ".rs"); kind = ""; name = ""; path = "" } \
       BEGIN { dir["bin"] = "src/bin/"; dir["bench"] = "benches/"; dir["test"] = "tests/"; dir["example"] = "examples/" } \
       /^[ \t]*\[\[(bin|bench|test|example)\]\]/ { flush(); kind = $0; gsub(/[][ \t]/, "", kind); next } \
       /^[ \t]*\[/ { flush(); next } \
       kind != "" && /^[ \t]*(name|path)[ \t]*=/ { key = $0; sub(/^[ \t]*/, "", key); sub(/[ \t]*=.*/, "", key); \
         val = $0; sub(/^[^"]*"/, "", val); sub(/".*/, "", val); if (key == "name") name = val; else path = val } \
-      END { flush() }' Cargo.toml > .stub-targets; \
+      END { flush() }' "$m"; done > .stub-targets; \
     mkdir -p src; \
     for d in crates/*/; do mkdir -p "${d}src"; : > "${d}src/lib.rs"; done; \
     echo 'fn main() {}' > crates/kinserve-load/src/main.rs; \
@@ -54,7 +54,7 @@ RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/regist
       if [ ! -e "$f" ]; then mkdir -p "$(dirname "$f")"; echo 'fn main() {}' > "$f"; fi; \
     done < .stub-targets; \
     cargo build --release --locked -p kinserve --bin kinserve; \
-    rm -rf src benches tests examples build.rs crates/*/src \
+    rm -rf src benches tests examples build.rs crates/*/src crates/*/benches \
       target/release/.fingerprint/kinserve* target/release/build/kinserve* \
       target/release/deps/kinserve* target/release/deps/libkinserve* \
       target/release/kinserve*

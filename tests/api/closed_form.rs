@@ -3,7 +3,7 @@
 //! examples are the real answers for the planar arm, the two protocols agree,
 //! and unknown robots and closed forms too long to print are refused with the
 //! documented statuses. (The numbers themselves are checked against FK in
-//! `crates/kinserve-model/tests/closed_form.rs` and `urdf.rs`.)
+//! `crates/kinserve-model/tests/model/closed_form.rs` and `urdf.rs`.)
 
 use std::path::Path;
 

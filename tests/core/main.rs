@@ -1,14 +1,10 @@
-//! Core tests: kinematics, model validation, robot files, CLI.
+//! Core tests of the server crate: the built-in robots as the server loads
+//! them, the CLI, the README's model examples and the fuzz corpus replay.
+//! The math tests (kinematics, Jacobian, IK, model validation, published
+//! poses, closed forms) live with their crates, in
+//! `crates/kinserve-kinematics/tests` and `crates/kinserve-model/tests`.
 mod builtins;
 mod cli;
-mod closed_forms;
 mod fuzz_corpus;
 mod helpers;
-mod ik;
-mod ik_requests;
-mod jacobian;
-mod kinematics;
-mod model;
-mod properties;
-mod published_poses;
 mod readme;

@@ -2,7 +2,7 @@
 //! 300 short samples (2,000 single poses or one batch of 10,000), so other
 //! processes on the same cores inflate it far less than a mean does. Also
 //! checks every kernel against the plain product. Companion to
-//! `cargo bench --bench fk` (criterion, means); see BENCHMARKS.md.
+//! `cargo bench -p kinserve-kinematics --bench fk` (criterion, means); see BENCHMARKS.md.
 //!
 //! Run: `cargo run --release -p kinserve-kinematics --example fk_min`
 

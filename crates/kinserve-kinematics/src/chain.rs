@@ -1,77 +1,15 @@
-//! The public face of a serial chain: the DH row types, the textbook link
-//! matrix ([`link_transform`], what the fast paths are tested against) and
-//! [`Chain`], which compiles its table once ([`crate::program`]) and evaluates
-//! it on the kernel picked at run time ([`crate::eval`]).
+//! The public face of a serial chain: [`Chain`], which compiles its table
+//! once ([`crate::program`]) and evaluates it on the kernel picked at run time
+//! ([`crate::eval`]). The row types it is built from live in [`crate::dh`].
 //!
-//! Depends on [`crate::program`], [`crate::eval`], [`crate::kernel`] and
-//! [`crate::transform`].
+//! Depends on [`crate::dh`], [`crate::program`], [`crate::eval`],
+//! [`crate::kernel`] and [`crate::transform`].
 
+use crate::dh::{Convention, DhRow, JointKind};
 use crate::eval;
 use crate::kernel::Kernel;
 use crate::program::{self, Program};
 use crate::transform::Transform;
-
-/// Which Denavit–Hartenberg convention a table is written in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Convention {
-    /// Standard (distal): `A_i = Rz(θ_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`.
-    Standard,
-    /// Modified (proximal, Craig): `A_i = Rx(α_{i-1})·Tx(a_{i-1})·Rz(θ_i)·Tz(d_i)`;
-    /// row `i` holds `α_{i-1}, a_{i-1}, θ_i, d_i`.
-    Modified,
-}
-
-/// The kind of joint a DH row describes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum JointKind {
-    /// The joint value (rad) is added to θ.
-    Revolute,
-    /// The joint value (length unit) is added to d.
-    Prismatic,
-    /// No joint variable: a constant frame written as a table row.
-    Fixed,
-}
-
-/// One DH row in internal units: angles in rad, lengths in the model's length unit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DhRow {
-    /// Joint kind.
-    pub kind: JointKind,
-    /// Link length `a` (standard: `a_i`; modified: `a_{i-1}`).
-    pub a: f64,
-    /// Link twist `α` in rad (standard: `α_i`; modified: `α_{i-1}`).
-    pub alpha: f64,
-    /// Link offset `d` (the zero position for a prismatic joint).
-    pub d: f64,
-    /// Joint angle `θ` in rad (the zero offset for a revolute joint).
-    pub theta: f64,
-}
-
-/// The homogeneous matrix of one DH row for joint value `q` (rad for revolute,
-/// length unit for prismatic, ignored for fixed), computed plainly with `std`
-/// trigonometry and generic products: the textbook definition, which the fast
-/// paths of [`Chain`] are tested against.
-pub fn link_transform(convention: Convention, row: &DhRow, q: f64) -> Transform {
-    let (theta, d) = match row.kind {
-        JointKind::Revolute => (row.theta + q, row.d),
-        JointKind::Prismatic => (row.theta, row.d + q),
-        JointKind::Fixed => (row.theta, row.d),
-    };
-    match convention {
-        Convention::Standard => {
-            Transform::rot_z(theta)
-                * Transform::translation(0.0, 0.0, d)
-                * Transform::translation(row.a, 0.0, 0.0)
-                * Transform::rot_x(row.alpha)
-        }
-        Convention::Modified => {
-            Transform::rot_x(row.alpha)
-                * Transform::translation(row.a, 0.0, 0.0)
-                * Transform::rot_z(theta)
-                * Transform::translation(0.0, 0.0, d)
-        }
-    }
-}
 
 /// A validated-elsewhere, compiled kinematic chain.
 ///
@@ -95,6 +33,30 @@ pub struct Chain {
 
 impl Chain {
     /// Compiles a chain from its rows, base (world ← frame 0) and tool (flange ← tool tip).
+    /// An identity tool is dropped ([`Chain::tool`] is then `None`).
+    ///
+    /// ```
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+    ///
+    /// let row = |kind, a, d| DhRow { kind, a, alpha: 0.0, d, theta: 0.0 };
+    /// let rows = [
+    ///     row(JointKind::Revolute, 0.4, 0.0),
+    ///     row(JointKind::Fixed, 0.1, 0.0), // a constant offset, no joint variable
+    ///     row(JointKind::Prismatic, 0.0, 0.2),
+    /// ];
+    /// let base = Transform::translation(0.0, 0.0, 1.0); // on a 1 m pedestal
+    /// let tool = Transform::translation(0.0, 0.0, 0.05); // 5 cm along the flange z
+    /// let chain = Chain::new(Convention::Standard, &rows, base, Some(tool));
+    /// assert_eq!((chain.dof(), chain.rows()), (2, 3));
+    /// assert!(chain.tool().is_some());
+    ///
+    /// // Home pose: x = 0.4 + 0.1, z = 1 + 0.2 + 0.05.
+    /// let [x, y, z] = chain.forward(&[0.0, 0.0], 1.0).position();
+    /// assert!((x - 0.5).abs() < 1e-12 && y.abs() < 1e-12 && (z - 1.25).abs() < 1e-12);
+    ///
+    /// let bare = Chain::new(Convention::Standard, &rows, base, Some(Transform::IDENTITY));
+    /// assert!(bare.tool().is_none());
+    /// ```
     pub fn new(
         convention: Convention,
         rows: &[DhRow],
@@ -166,6 +128,32 @@ impl Chain {
     ///
     /// Unchecked: the caller guarantees `q.len() == self.dof()` and finite values;
     /// missing values count as 0 and extra ones are ignored. Allocates nothing.
+    ///
+    /// The result is the textbook product of the link matrices
+    /// ([`link_transform`](crate::link_transform)):
+    ///
+    /// ```
+    /// use std::f64::consts::{FRAC_PI_2, PI};
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform, link_transform};
+    ///
+    /// let rows = [
+    ///     DhRow { kind: JointKind::Revolute, a: 0.0, alpha: 0.0, d: 0.3, theta: 0.0 },
+    ///     DhRow { kind: JointKind::Revolute, a: 0.0, alpha: -FRAC_PI_2, d: 0.0, theta: 0.0 },
+    ///     DhRow { kind: JointKind::Revolute, a: 0.4, alpha: 0.0, d: 0.0, theta: 0.0 },
+    /// ];
+    /// let base = Transform::translation(0.1, 0.0, 0.0);
+    /// let chain = Chain::new(Convention::Modified, &rows, base, None);
+    ///
+    /// let q_deg = [30.0, -45.0, 60.0];
+    /// let pose = chain.forward(&q_deg, PI / 180.0);
+    ///
+    /// let mut plain = base;
+    /// for (row, q) in rows.iter().zip(q_deg) {
+    ///     plain = plain * link_transform(Convention::Modified, row, q.to_radians());
+    /// }
+    /// assert!(pose.max_abs_diff(&plain) < 1e-12);
+    /// assert!(pose.rigidity_error() < 1e-12);
+    /// ```
     #[inline]
     pub fn forward(&self, q: &[f64], angle_scale: f64) -> Transform {
         // SAFETY: `Kernel::best` only returns a kernel this CPU supports.

@@ -24,7 +24,8 @@ use std::time::Instant;
 
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 
-use crate::chain::{Chain, JointKind};
+use crate::chain::Chain;
+use crate::dh::JointKind;
 use crate::jacobian::JacobianFrame;
 use crate::transform::Transform;
 

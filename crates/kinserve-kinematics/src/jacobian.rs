@@ -13,7 +13,8 @@
 //! (revolute, dimensionless) or per length unit (prismatic, always 0). Columns
 //! are per radian whatever `angle_scale` the joint values were given with.
 
-use crate::chain::{Chain, Convention, JointKind};
+use crate::chain::Chain;
+use crate::dh::{Convention, JointKind};
 use crate::transform::Transform;
 
 /// The frame a Jacobian's rows are expressed in.

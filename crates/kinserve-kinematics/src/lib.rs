@@ -16,6 +16,23 @@
 //!
 //! Units: angles in radians, lengths in whatever unit the caller's table uses.
 //!
+//! # Example
+//!
+//! A planar arm of two revolute joints with links of 0.4 and 0.3 (standard
+//! DH), evaluated with its joint values in degrees:
+//!
+//! ```
+//! use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+//!
+//! let link = |a| DhRow { kind: JointKind::Revolute, a, alpha: 0.0, d: 0.0, theta: 0.0 };
+//! let chain = Chain::new(Convention::Standard, &[link(0.4), link(0.3)], Transform::IDENTITY, None);
+//! assert_eq!(chain.dof(), 2);
+//!
+//! // Shoulder at 90°, elbow at 0°: the arm points along +y, 0.7 out.
+//! let [x, y, z] = chain.forward(&[90.0, 0.0], std::f64::consts::PI / 180.0).position();
+//! assert!(x.abs() < 1e-12 && (y - 0.7).abs() < 1e-12 && z.abs() < 1e-12);
+//! ```
+//!
 //! Must not depend on: serde, tokio, axum, tonic, prost, hyper, tower, utoipa —
 //! or on any other kinserve crate. Validation lives one layer up
 //! (`kinserve-model`); the evaluators here are unchecked by design and say so.
@@ -23,6 +40,7 @@
 mod chain;
 #[cfg(feature = "nalgebra")]
 mod convert;
+mod dh;
 mod eval;
 #[cfg(feature = "ik")]
 pub mod ik;
@@ -34,7 +52,8 @@ pub mod sincos;
 mod step;
 mod transform;
 
-pub use chain::{Chain, Convention, DhRow, JointKind, link_transform};
+pub use chain::Chain;
+pub use dh::{Convention, DhRow, JointKind, link_transform};
 pub use jacobian::{Jacobian, JacobianFrame};
 #[cfg(feature = "nalgebra")]
 pub use jacobian::{SINGULAR_THRESHOLD, VelocityMeasures};

@@ -22,9 +22,9 @@
 //! has a cosine of 6.1e-17, not 0. The change is below 1e-15 × the reach.
 //!
 //! Owns nothing public. Depends on [`crate::transform`] and the row types of
-//! [`crate::chain`] only.
+//! [`crate::dh`] only.
 
-use crate::chain::{Convention, DhRow, JointKind};
+use crate::dh::{Convention, DhRow, JointKind};
 use crate::transform::Transform;
 
 /// A rigid transform in column-major form: columns x, y, z of the rotation, then

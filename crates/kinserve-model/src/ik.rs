@@ -185,6 +185,36 @@ struct OptionFields<'a> {
 impl Robot {
     /// Validates an IK request: every broken rule is reported under its field
     /// path (`target.matrix[3]`, `tolerance`, `seed[2]`).
+    ///
+    /// The validated [`IkRequest`] is what the solver takes ([`IkRequest::solve`]):
+    ///
+    /// ```
+    /// use kinserve_model::{FkOptions, IkSpec, IkTargetSpec, ModelLimits, Robot};
+    ///
+    /// let robot = Robot::from_json(br#"{"name": "planar", "convention": "standard", "links": [
+    ///     {"joint": "revolute", "a": 0.4, "alpha": 0, "d": 0, "theta": 0},
+    ///     {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0, "limits": [0, 3]}
+    /// ]}"#, &ModelLimits::default())?;
+    ///
+    /// // A position some configuration reaches, asked for without an orientation.
+    /// let goal = robot.fk(&[0.3, 0.6], &FkOptions::default())?.position();
+    /// let target = IkTargetSpec { position: Some(goal), ..IkTargetSpec::default() };
+    /// let spec = IkSpec { target, position_only: true, ..IkSpec::default() };
+    ///
+    /// let request = robot.check_ik(&spec)?;
+    /// let answer = request.solve(None); // no time cap
+    /// assert!(answer.converged && answer.position_error <= request.options().tolerance);
+    /// assert_eq!(answer.orientation_error, None);
+    /// // The answer keeps the limits, and its pose is the FK of its joints.
+    /// let pose = robot.fk(&answer.joints, &FkOptions::default())?;
+    /// assert!(pose.max_abs_diff(&answer.pose) < 1e-12);
+    ///
+    /// // Without position_only a target needs its orientation too.
+    /// let oriented = IkSpec { position_only: false, ..spec.clone() };
+    /// let refused = robot.check_ik(&oriented).unwrap_err();
+    /// assert_eq!(refused.violations()[0].field, "target.quaternion");
+    /// # Ok::<(), kinserve_model::ModelError>(())
+    /// ```
     pub fn check_ik<'a>(&'a self, spec: &IkSpec) -> Result<IkRequest<'a>> {
         let mut v = Vec::new();
         let target = check_target(&spec.target, spec.position_only, "target", &mut v);
@@ -440,6 +470,8 @@ impl IkRequest<'_> {
     }
 
     /// Solves, giving up at `deadline` (the best attempt so far is answered).
+    /// `None` means no time cap: the answer is then deterministic. See
+    /// [`Robot::check_ik`] for an example.
     pub fn solve(&self, deadline: Option<Instant>) -> IkAnswer {
         let opts = IkOptions {
             deadline,

@@ -1,9 +1,201 @@
-//! Validated joint vectors: made only by [`Robot::check_joints`] and
-//! [`Robot::check_batch`], and the only input a robot's FK accepts.
+//! Validated joint vectors: [`Robot::check_joints`] and [`Robot::check_batch`]
+//! (count, finiteness, magnitude and limits, each refusal under its field
+//! path) and what they make, [`JointVector`] and [`JointBatch`]: the only
+//! input a robot's FK accepts.
+//!
+//! Depends on [`crate::robot`] (the validated robot and its joints) and
+//! [`crate::error`]; `robot.rs` must not depend on this module.
 
-use kinserve_kinematics::Transform;
+use kinserve_kinematics::{JointKind, Transform};
 
-use crate::robot::Robot;
+use crate::error::{ModelError, Result};
+use crate::robot::{FkOptions, Joint, Robot, round6};
+use crate::spec::AngleUnit;
+use crate::{MAX_MAGNITUDE, MAX_REVOLUTE_RAD};
+
+impl Robot {
+    /// Checks a joint vector — count, finiteness, prismatic values within
+    /// ±[`MAX_MAGNITUDE`] and (if asked) limits — and returns it as the
+    /// validated [`JointVector`] that FK accepts. Field paths are `joints[i]`.
+    ///
+    /// ```
+    /// use kinserve_model::{FkOptions, ModelLimits, Robot};
+    ///
+    /// let robot = Robot::from_json(br#"{"name": "slide-arm", "convention": "standard", "links": [
+    ///     {"joint": "revolute", "a": 0.4, "alpha": 0, "d": 0, "theta": 0, "limits": [-1.5, 1.5]},
+    ///     {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0.1, "theta": 0, "limits": [0, 0.2]}
+    /// ]}"#, &ModelLimits::default())?;
+    /// let opts = FkOptions::default(); // rad, limits checked
+    ///
+    /// let q = robot.check_joints(&[0.5, 0.1], &opts)?;
+    /// assert_eq!(q.values(), &[0.5, 0.1]);
+    /// let [x, y, z] = q.fk().position(); // Rz(0.5)·Tx(0.4), then Tz(0.1 + 0.1)
+    /// assert!((x - 0.4 * 0.5f64.cos()).abs() < 1e-12);
+    /// assert!((y - 0.4 * 0.5f64.sin()).abs() < 1e-12 && (z - 0.2).abs() < 1e-12);
+    ///
+    /// // Wrong count, a non-finite value, a value beyond its limits:
+    /// let field = |q: &[f64]| robot.check_joints(q, &opts).unwrap_err().violations()[0].field.clone();
+    /// assert_eq!(field(&[0.5]), "joints");
+    /// assert_eq!(field(&[0.5, f64::NAN]), "joints[1]");
+    /// assert_eq!(field(&[2.0, 0.1]), "joints[0]");
+    /// // ... which passes when limits are not checked.
+    /// assert!(robot.check_joints(&[2.0, 0.1], &FkOptions::new(None, Some(false))).is_ok());
+    /// # Ok::<(), kinserve_model::ModelError>(())
+    /// ```
+    pub fn check_joints<'a>(&'a self, q: &'a [f64], opts: &FkOptions) -> Result<JointVector<'a>> {
+        self.check_joints_at(q, opts, || "joints".to_string())
+    }
+
+    /// Like [`Robot::check_joints`], with the vector's field path given lazily
+    /// (e.g. `configurations[17]`, giving `configurations[17][2]`).
+    pub fn check_joints_at<'a>(
+        &'a self,
+        q: &'a [f64],
+        opts: &FkOptions,
+        field: impl Fn() -> String,
+    ) -> Result<JointVector<'a>> {
+        if q.len() != self.dof() {
+            return Err(ModelError::invalid_field(
+                field(),
+                format!(
+                    "robot '{}' has {} movable joints, got {} values",
+                    self.name(),
+                    self.dof(),
+                    q.len()
+                ),
+            ));
+        }
+        for (i, (x, j)) in q.iter().zip(self.joints()).enumerate() {
+            if let Some(mut message) = self.check_value(*x, j, opts) {
+                if x.abs() > std::f64::consts::PI && self.looks_like_degrees(q, opts) {
+                    message.push_str(
+                        "; read as degrees every value is within the limits: send angle_unit \"deg\"",
+                    );
+                }
+                return Err(ModelError::invalid_field(
+                    format!("{}[{i}]", field()),
+                    message,
+                ));
+            }
+        }
+        Ok(JointVector::new(self, q, opts.angle_unit.to_rad()))
+    }
+
+    /// Whether `q`, sent in rad, would keep every limit if its revolute values
+    /// were degrees (the usual mistake: `[0, 90, -90]`). Asked only for an
+    /// offending value beyond ±π, which is unlikely to be meant as radians.
+    fn looks_like_degrees(&self, q: &[f64], opts: &FkOptions) -> bool {
+        if opts.angle_unit != AngleUnit::Rad || !opts.check_limits {
+            return false;
+        }
+        let deg = FkOptions {
+            angle_unit: AngleUnit::Deg,
+            check_limits: true,
+        };
+        q.iter()
+            .zip(self.joints())
+            .all(|(x, j)| self.check_value(*x, j, &deg).is_none())
+    }
+
+    /// What is wrong with value `x` of joint `j`, if anything.
+    fn check_value(&self, x: f64, j: &Joint, opts: &FkOptions) -> Option<String> {
+        if !x.is_finite() {
+            return Some("must be a finite number".into());
+        }
+        if j.kind == JointKind::Prismatic && x.abs() > MAX_MAGNITUDE {
+            let unit = self.length_unit().as_str();
+            return Some(format!(
+                "{x} {unit} is beyond ±{MAX_MAGNITUDE:e} {unit}, the largest prismatic joint value accepted"
+            ));
+        }
+        let scale = opts.angle_unit.to_rad();
+        if j.kind == JointKind::Revolute && (x * scale).abs() > MAX_REVOLUTE_RAD {
+            let unit = opts.angle_unit.as_str();
+            return Some(format!(
+                "{x} {unit} is beyond ±{} {unit}, the largest revolute joint value accepted (±1e5 rad)",
+                round6(MAX_REVOLUTE_RAD / scale)
+            ));
+        }
+        let (lo, hi) = j.limits.filter(|_| opts.check_limits)?;
+        let internal = if j.kind == JointKind::Revolute {
+            x * scale
+        } else {
+            x
+        };
+        if internal >= lo && internal <= hi {
+            return None;
+        }
+        Some(self.limits_message(x, lo, hi, j, opts.angle_unit))
+    }
+
+    /// "`x` unit is outside the limits [lo, hi] unit of joint 'name'", limits
+    /// rounded to 6 significant digits in the request's unit, and in the
+    /// model's own angle unit too when that differs.
+    fn limits_message(&self, x: f64, lo: f64, hi: f64, j: &Joint, unit: AngleUnit) -> String {
+        if j.kind != JointKind::Revolute {
+            let u = self.length_unit().as_str();
+            return format!(
+                "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
+                round6(lo),
+                round6(hi),
+                j.name
+            );
+        }
+        let k = 1.0 / unit.to_rad();
+        let mut m = format!(
+            "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
+            round6(lo * k),
+            round6(hi * k),
+            j.name,
+            u = unit.as_str()
+        );
+        let model = self.spec().angle_unit;
+        if model != unit {
+            let km = 1.0 / model.to_rad();
+            m.push_str(&format!(
+                " ([{}, {}] {} in the model)",
+                round6(lo * km),
+                round6(hi * km),
+                model.as_str()
+            ));
+        }
+        m
+    }
+
+    /// Checks many configurations stored back to back (`lens[i]` values for
+    /// configuration `i`); the first bad one fails the whole batch, naming it
+    /// (`configurations[17][2]`).
+    pub fn check_batch<'a>(
+        &'a self,
+        values: &'a [f64],
+        lens: &[u32],
+        opts: &FkOptions,
+    ) -> Result<JointBatch<'a>> {
+        let mut offset = 0usize;
+        for (i, &len) in lens.iter().enumerate() {
+            let len = len as usize;
+            let q = values.get(offset..offset + len).unwrap_or(&[]);
+            self.check_joints_at(q, opts, || format!("configurations[{i}]"))?;
+            offset += len;
+        }
+        Ok(JointBatch::new(
+            self,
+            &values[..offset.min(values.len())],
+            lens.len(),
+            opts.angle_unit.to_rad(),
+        ))
+    }
+
+    /// Checked FK: validates `q` (see [`Robot::check_joints`]) and returns the tool pose.
+    pub fn fk(&self, q: &[f64], opts: &FkOptions) -> Result<Transform> {
+        Ok(self.check_joints(q, opts)?.fk())
+    }
+
+    /// Checked FK with every frame (see [`JointVector::fk_frames`]).
+    pub fn fk_frames(&self, q: &[f64], opts: &FkOptions) -> Result<(Transform, Vec<Transform>)> {
+        Ok(self.check_joints(q, opts)?.fk_frames())
+    }
+}
 
 /// One joint vector that passed [`Robot::check_joints`] for its robot: right
 /// length, finite, within limits when they were checked. Revolute values are

@@ -1,5 +1,7 @@
-//! JSON in: parsing with field paths ([`parse_json`]) and robot files
-//! ([`load_robot_file`]). Depends on the error and robot modules only.
+//! JSON in: parsing with field paths ([`parse_json`]), JSON models
+//! ([`Robot::from_json`]) and robot files ([`load_robot_file`]). Depends on
+//! the error, spec and robot modules only (`robot.rs` must not depend on this
+//! one).
 
 use std::path::Path;
 
@@ -33,6 +35,14 @@ fn parse_json_with_path<T: DeserializeOwned>(bytes: &[u8]) -> Result<T> {
     de.end()
         .map_err(|e| ModelError::malformed_field("", format!("{e}")))?;
     Ok(value)
+}
+
+impl Robot {
+    /// Parses a JSON model and validates it.
+    pub fn from_json(bytes: &[u8], limits: &ModelLimits) -> Result<Robot> {
+        let spec: RobotSpec = parse_json(bytes)?;
+        Robot::from_spec(spec, limits)
+    }
 }
 
 /// Longest field path reported for a JSON error (characters); longer ones are cut.

@@ -16,6 +16,7 @@
 //! Depends on `kinserve-kinematics` (the math) and serde. Must not depend on:
 //! tokio, axum, tonic, prost, hyper, tower, reqwest — nor on the server crate.
 //! With the `openapi` feature the schema types also derive `utoipa::ToSchema`.
+#![doc = include_str!("crate_example.md")]
 
 mod base_tool;
 mod closed_form;

@@ -1,12 +1,15 @@
 //! The validated robot: [`Robot::from_spec`] checks a [`RobotSpec`] rule by
-//! rule and compiles it into a kinematic chain; [`Robot::check_joints`] turns
-//! a joint vector into the [`JointVector`] its FK accepts.
+//! rule and compiles it into a kinematic chain. Checking joint values against
+//! it ([`Robot::check_joints`]) lives one module up, in `joints.rs`, beside
+//! the [`JointVector`](crate::JointVector) it makes.
+//!
+//! Depends on the spec, base/tool and error modules; must not depend on
+//! `joints.rs`, `ik.rs` or `velocity.rs` (they build on this one).
 
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 
 use crate::base_tool::{check_bounded, transform_from_spec};
 use crate::error::{FieldViolation, ModelError, Result};
-use crate::joints::{JointBatch, JointVector};
 use crate::spec::{AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, RobotSpec};
 use crate::{MAX_LINK_NAME_CHARS, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, MAX_TEXT_CHARS, validate_name};
 
@@ -124,12 +127,6 @@ impl Robot {
         })
     }
 
-    /// Parses a JSON model and validates it.
-    pub fn from_json(bytes: &[u8], limits: &ModelLimits) -> Result<Robot> {
-        let spec: RobotSpec = crate::parse_json(bytes)?;
-        Robot::from_spec(spec, limits)
-    }
-
     /// The robot's name.
     pub fn name(&self) -> &str {
         &self.spec.name
@@ -159,163 +156,6 @@ impl Robot {
     /// Length unit of this robot's positions.
     pub fn length_unit(&self) -> LengthUnit {
         self.spec.length_unit
-    }
-
-    /// Checks a joint vector — count, finiteness, prismatic values within
-    /// ±[`MAX_MAGNITUDE`] and (if asked) limits — and returns it as the
-    /// validated [`JointVector`] that FK accepts. Field paths are `joints[i]`.
-    pub fn check_joints<'a>(&'a self, q: &'a [f64], opts: &FkOptions) -> Result<JointVector<'a>> {
-        self.check_joints_at(q, opts, || "joints".to_string())
-    }
-
-    /// Like [`Robot::check_joints`], with the vector's field path given lazily
-    /// (e.g. `configurations[17]`, giving `configurations[17][2]`).
-    pub fn check_joints_at<'a>(
-        &'a self,
-        q: &'a [f64],
-        opts: &FkOptions,
-        field: impl Fn() -> String,
-    ) -> Result<JointVector<'a>> {
-        if q.len() != self.joints.len() {
-            return Err(ModelError::invalid_field(
-                field(),
-                format!(
-                    "robot '{}' has {} movable joints, got {} values",
-                    self.name(),
-                    self.joints.len(),
-                    q.len()
-                ),
-            ));
-        }
-        for (i, (x, j)) in q.iter().zip(&self.joints).enumerate() {
-            if let Some(mut message) = self.check_value(*x, j, opts) {
-                if x.abs() > std::f64::consts::PI && self.looks_like_degrees(q, opts) {
-                    message.push_str(
-                        "; read as degrees every value is within the limits: send angle_unit \"deg\"",
-                    );
-                }
-                return Err(ModelError::invalid_field(
-                    format!("{}[{i}]", field()),
-                    message,
-                ));
-            }
-        }
-        Ok(JointVector::new(self, q, opts.angle_unit.to_rad()))
-    }
-
-    /// Whether `q`, sent in rad, would keep every limit if its revolute values
-    /// were degrees (the usual mistake: `[0, 90, -90]`). Asked only for an
-    /// offending value beyond ±π, which is unlikely to be meant as radians.
-    fn looks_like_degrees(&self, q: &[f64], opts: &FkOptions) -> bool {
-        if opts.angle_unit != AngleUnit::Rad || !opts.check_limits {
-            return false;
-        }
-        let deg = FkOptions {
-            angle_unit: AngleUnit::Deg,
-            check_limits: true,
-        };
-        q.iter()
-            .zip(&self.joints)
-            .all(|(x, j)| self.check_value(*x, j, &deg).is_none())
-    }
-
-    /// What is wrong with value `x` of joint `j`, if anything.
-    fn check_value(&self, x: f64, j: &Joint, opts: &FkOptions) -> Option<String> {
-        if !x.is_finite() {
-            return Some("must be a finite number".into());
-        }
-        if j.kind == JointKind::Prismatic && x.abs() > MAX_MAGNITUDE {
-            let unit = self.spec.length_unit.as_str();
-            return Some(format!(
-                "{x} {unit} is beyond ±{MAX_MAGNITUDE:e} {unit}, the largest prismatic joint value accepted"
-            ));
-        }
-        let scale = opts.angle_unit.to_rad();
-        if j.kind == JointKind::Revolute && (x * scale).abs() > MAX_REVOLUTE_RAD {
-            let unit = opts.angle_unit.as_str();
-            return Some(format!(
-                "{x} {unit} is beyond ±{} {unit}, the largest revolute joint value accepted (±1e5 rad)",
-                round6(MAX_REVOLUTE_RAD / scale)
-            ));
-        }
-        let (lo, hi) = j.limits.filter(|_| opts.check_limits)?;
-        let internal = if j.kind == JointKind::Revolute {
-            x * scale
-        } else {
-            x
-        };
-        if internal >= lo && internal <= hi {
-            return None;
-        }
-        Some(self.limits_message(x, lo, hi, j, opts.angle_unit))
-    }
-
-    /// "`x` unit is outside the limits [lo, hi] unit of joint 'name'", limits
-    /// rounded to 6 significant digits in the request's unit, and in the
-    /// model's own angle unit too when that differs.
-    fn limits_message(&self, x: f64, lo: f64, hi: f64, j: &Joint, unit: AngleUnit) -> String {
-        if j.kind != JointKind::Revolute {
-            let u = self.spec.length_unit.as_str();
-            return format!(
-                "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
-                round6(lo),
-                round6(hi),
-                j.name
-            );
-        }
-        let k = 1.0 / unit.to_rad();
-        let mut m = format!(
-            "{x} {u} is outside the limits [{}, {}] {u} of joint '{}'",
-            round6(lo * k),
-            round6(hi * k),
-            j.name,
-            u = unit.as_str()
-        );
-        let model = self.spec.angle_unit;
-        if model != unit {
-            let km = 1.0 / model.to_rad();
-            m.push_str(&format!(
-                " ([{}, {}] {} in the model)",
-                round6(lo * km),
-                round6(hi * km),
-                model.as_str()
-            ));
-        }
-        m
-    }
-
-    /// Checks many configurations stored back to back (`lens[i]` values for
-    /// configuration `i`); the first bad one fails the whole batch, naming it
-    /// (`configurations[17][2]`).
-    pub fn check_batch<'a>(
-        &'a self,
-        values: &'a [f64],
-        lens: &[u32],
-        opts: &FkOptions,
-    ) -> Result<JointBatch<'a>> {
-        let mut offset = 0usize;
-        for (i, &len) in lens.iter().enumerate() {
-            let len = len as usize;
-            let q = values.get(offset..offset + len).unwrap_or(&[]);
-            self.check_joints_at(q, opts, || format!("configurations[{i}]"))?;
-            offset += len;
-        }
-        Ok(JointBatch::new(
-            self,
-            &values[..offset.min(values.len())],
-            lens.len(),
-            opts.angle_unit.to_rad(),
-        ))
-    }
-
-    /// Checked FK: validates `q` (see [`Robot::check_joints`]) and returns the tool pose.
-    pub fn fk(&self, q: &[f64], opts: &FkOptions) -> Result<Transform> {
-        Ok(self.check_joints(q, opts)?.fk())
-    }
-
-    /// Checked FK with every frame (see [`JointVector::fk_frames`]).
-    pub fn fk_frames(&self, q: &[f64], opts: &FkOptions) -> Result<(Transform, Vec<Transform>)> {
-        Ok(self.check_joints(q, opts)?.fk_frames())
     }
 }
 
@@ -464,7 +304,7 @@ fn check_limits(
 }
 
 /// `x` with at most 6 significant digits, without trailing zeros (`1.91986`, `0.5`, `160`).
-fn round6(x: f64) -> String {
+pub(crate) fn round6(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{}", if x == 0.0 { 0.0 } else { x });
     }

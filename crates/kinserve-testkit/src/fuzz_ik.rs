@@ -1,6 +1,7 @@
 //! The IK request's property check ([`check_ik_request`]), shared by the
 //! `ik_request` cargo-fuzz target and the corpus replay test like the checks
-//! in [`crate::fuzzing`] (whose robots and pose checks it reuses).
+//! in `fuzzing.rs` (whose robots and pose checks, in `fuzz_shared.rs`, it
+//! shares).
 //!
 //! Depends on the server crate's request types (as the front doors parse
 //! them) and on the model's validation; solves under a short time cap, so a
@@ -17,7 +18,7 @@ use kinserve_model::{
     AngleUnit, FkOptions, IkAnswer, IkBatchSpec, IkSpec, IkTarget, Robot, parse_json,
 };
 
-use crate::fuzzing::{assert_client_error, check_pose, robots};
+use crate::fuzz_shared::{assert_client_error, check_pose, robots};
 
 /// Time cap of one solve in the check (the server's default is 50 ms).
 const SOLVE_CAP: Duration = Duration::from_millis(5);

@@ -23,17 +23,18 @@
 use std::sync::OnceLock;
 
 use kinserve::api::pose::Pose;
-use kinserve::api::rest::{FkBatchRequest, FkRequest, Problem, WsRequest};
+use kinserve::api::rest::{FkBatchRequest, FkRequest, WsRequest};
 use kinserve::error::Error;
 use kinserve::registry::{MemoryStore, Registry};
 use kinserve::service::{Service, ServiceLimits};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
     AngleUnit, FkBatchSpec, FkOptions, FkSpec, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError,
-    ModelLimits, RIGID_TOLERANCE, Robot, StreamOp, parse_json,
+    ModelLimits, Robot, StreamOp, parse_json,
 };
 
 pub use crate::fuzz_ik::check_ik_request;
+use crate::fuzz_shared::{assert_client_error, check_pose, robots};
 use crate::reference::forward_reference;
 
 /// Relative tolerance between the fast (polynomial, SIMD) FK and the `std`
@@ -276,31 +277,6 @@ fn service() -> &'static Service {
     })
 }
 
-/// Built-in robots covering revolute limits (puma560), prismatic joints with
-/// limits (stanford, cylindrical_3dof), unlimited revolute joints (scara_4dof),
-/// and a model with unlimited, parallel prismatic joints.
-pub(crate) fn robots() -> &'static [Robot] {
-    static ROBOTS: OnceLock<Vec<Robot>> = OnceLock::new();
-    ROBOTS.get_or_init(|| {
-        let files: [&[u8]; 4] = [
-            include_bytes!("../../../robots/puma560.json"),
-            include_bytes!("../../../robots/stanford.json"),
-            include_bytes!("../../../robots/scara_4dof.json"),
-            include_bytes!("../../../robots/cylindrical_3dof.json"),
-        ];
-        let slides = br#"{"name": "slides", "convention": "standard", "links": [
-            {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0, "theta": 0},
-            {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0, "theta": 0},
-            {"joint": "revolute", "a": 1, "alpha": 0, "d": 0, "theta": 0}]}"#;
-        files
-            .iter()
-            .copied()
-            .chain([&slides[..]])
-            .map(|b| Robot::from_json(b, &ModelLimits::default()).expect("built-in robot"))
-            .collect()
-    })
-}
-
 /// The spec after a JSON round trip equals the original: exactly if serde_json
 /// parses floats exactly (its `float_roundtrip` feature), else within a few ulp
 /// (its default parser can be off by one or two ulp on 17-digit input, so an
@@ -348,15 +324,6 @@ fn same_within_ulps(a: &serde_json::Value, b: &serde_json::Value) -> bool {
     }
 }
 
-/// A model or request error must be one the client caused (HTTP 4xx).
-pub(crate) fn assert_client_error(e: &Error, what: &str) {
-    let status = Problem::from_error(e).status;
-    assert!(
-        (400..500).contains(&status),
-        "{what}: error maps to HTTP {status}, not a client error: {e}"
-    );
-}
-
 fn expect_invalid(r: Result<Transform, ModelError>, what: &str) {
     match r {
         Ok(t) => panic!("{what}: accepted, giving {t:?}"),
@@ -365,35 +332,6 @@ fn expect_invalid(r: Result<Transform, ModelError>, what: &str) {
             "{what}: expected an invalid-input error, got {e}"
         ),
     }
-}
-
-/// Finite and rigid, and its pose form (quaternion, rpy) is finite and unit.
-pub(crate) fn check_pose(t: &Transform, what: &str, q: &[f64]) {
-    let finite = t.rotation.iter().flatten().all(|x| x.is_finite())
-        && t.translation.iter().all(|x| x.is_finite());
-    assert!(finite, "{what}: non-finite pose {t:?} for q = {q:?}");
-    let err = t.rigidity_error();
-    assert!(
-        err < RIGID_TOLERANCE,
-        "{what}: pose is not rigid (off by {err:e}) for q = {q:?}: {t:?}"
-    );
-    let p = Pose::from(t);
-    let n = p.quaternion.w.powi(2)
-        + p.quaternion.x.powi(2)
-        + p.quaternion.y.powi(2)
-        + p.quaternion.z.powi(2);
-    assert!(
-        (n - 1.0).abs() < 1e-9 && p.quaternion.w >= 0.0,
-        "{what}: quaternion {:?} is not a unit quaternion with w >= 0 for q = {q:?}",
-        p.quaternion
-    );
-    assert!(
-        p.rpy
-            .iter()
-            .all(|a| a.abs() <= std::f64::consts::PI + 1e-12),
-        "{what}: rpy {:?} out of range for q = {q:?}",
-        p.rpy
-    );
 }
 
 /// serde_json writes a non-finite number as `null`, which the schema forbids.

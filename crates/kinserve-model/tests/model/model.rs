@@ -1,14 +1,14 @@
 //! Model validation: every robot file validates; bad models give the documented field errors.
 
-use kinserve::model::ModelError as Error;
-use kinserve::model::{
+use kinserve_model::ModelError as Error;
+use kinserve_model::{
     AngleUnit, FkOptions, ModelLimits, Robot, RobotSpec, load_robot_file, parse_json,
 };
 use kinserve_testkit::RobotExt;
 use serde_json::json;
 
 fn robots_dir() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots")
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots")
 }
 
 #[test]
@@ -268,7 +268,7 @@ fn revolute_values_are_bounded_and_frames_agree_up_to_the_bound() {
         "{e}"
     );
     // Just inside the bound (the bound itself may round either way in degrees).
-    let edge = kinserve::model::MAX_REVOLUTE_RAD.to_degrees() * (1.0 - 1e-12);
+    let edge = kinserve_model::MAX_REVOLUTE_RAD.to_degrees() * (1.0 - 1e-12);
     for q in [[edge, 0.0], [-edge, 1234.5], [0.5 * edge, -0.25 * edge]] {
         let single = robot.fk(&q, &deg).unwrap();
         let (tool, _) = robot.fk_frames(&q, &deg).unwrap();

@@ -1,19 +1,19 @@
 //! FK speed: single pose (best kernel, each kernel, plain product), single pose
 //! with every frame, and a batch of 10,000 poses (best kernel, each kernel), for
 //! PUMA 560 and UR5e (6R, standard DH) and Panda (7R + flange, modified DH).
-//! Run with `cargo bench --bench fk`; ids are `single/ROBOT/...` and
+//! Run with `cargo bench -p kinserve-kinematics --bench fk`; ids are `single/ROBOT/...` and
 //! `batch10k/ROBOT/...`, where `fast`/`simd` is the kernel `Kernel::best` picks.
 
 use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use kinserve::kinematics::{Kernel, Transform};
-use kinserve::model::load_robot_file;
+use kinserve_kinematics::{Kernel, Transform};
+use kinserve_model::load_robot_file;
 use kinserve_testkit::forward_reference;
 
-fn robot(name: &str) -> kinserve::model::Robot {
-    let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+fn robot(name: &str) -> kinserve_model::Robot {
+    let path = format!("{}/../../robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
     load_robot_file(Path::new(&path)).expect("robot file loads")
 }
 

@@ -25,8 +25,8 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
 
-use kinserve::kinematics::{Convention, DhRow, JointKind, Transform, link_transform};
-use kinserve::model::{Robot, load_robot_file};
+use kinserve_kinematics::{Convention, DhRow, JointKind, Transform, link_transform};
+use kinserve_model::{Robot, load_robot_file};
 use kinserve_testkit::RobotExt;
 use nalgebra::Matrix4;
 
@@ -38,7 +38,7 @@ const TOL: f64 = 1e-9;
 type M4 = [[f64; 4]; 4];
 
 fn load(name: &str) -> Robot {
-    let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/../../robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
     load_robot_file(Path::new(&path)).unwrap_or_else(|e| panic!("{path}: not a valid model: {e:?}"))
 }
 

@@ -3,9 +3,9 @@
 //! respected in every answer; unreachable targets; position-only mode;
 //! determinism.
 
-use kinserve::kinematics::ik::{IkOptions, IkSolution, IkSolver, rotation_error};
-use kinserve::kinematics::{JointKind, Transform};
-use kinserve::model::Robot;
+use kinserve_kinematics::ik::{IkOptions, IkSolution, IkSolver, rotation_error};
+use kinserve_kinematics::{JointKind, Transform};
+use kinserve_model::Robot;
 
 use crate::jacobian::{all_robots, random_config};
 use crate::kinematics::Rng;

@@ -3,17 +3,17 @@
 //! prismatic and fixed rows, base and tool), in both frames; manipulability,
 //! condition number and the singular flag against their definitions.
 
-use kinserve::kinematics::{
+use kinserve_kinematics::{
     Chain, Convention, DhRow, Jacobian, JacobianFrame, JointKind, SINGULAR_THRESHOLD, Transform,
 };
-use kinserve::model::{Robot, load_robot_file};
+use kinserve_model::{Robot, load_robot_file};
 use nalgebra::{DMatrix, Matrix3};
 
 use crate::kinematics::Rng;
 
 /// Every robot file in `robots/`, sorted by name.
 pub fn all_robots() -> Vec<Robot> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots");
     let mut robots: Vec<Robot> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())

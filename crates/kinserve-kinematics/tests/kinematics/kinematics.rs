@@ -1,8 +1,8 @@
 //! The fast FK paths against the plain product of link matrices, and the
 //! vectorised sine/cosine against `std`.
 
-use kinserve::kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
+use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
 /// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
@@ -240,7 +240,7 @@ fn assert_frames_match_the_plain_products(chain: &Chain, q: &[f64], frames: &[Tr
             JointKind::Fixed => 0.0,
             _ => qi.next().copied().unwrap_or(0.0),
         };
-        t = t * kinserve::kinematics::link_transform(chain.convention(), &row, v);
+        t = t * kinserve_kinematics::link_transform(chain.convention(), &row, v);
         let e = frames[i + 1].max_abs_diff(&t);
         assert!(e <= FAST_PATH_TOL, "frame {}: {e:e}", i + 1);
     }
@@ -264,8 +264,8 @@ fn frames_match_the_plain_products_for_random_tables() {
 #[test]
 fn the_built_in_arms_compile_to_aligned_steps_only() {
     for name in ["puma560", "ur5e", "panda", "kuka_kr5", "stanford"] {
-        let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
-        let robot = kinserve::model::load_robot_file(std::path::Path::new(&path)).unwrap();
+        let path = format!("{}/../../robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+        let robot = kinserve_model::load_robot_file(std::path::Path::new(&path)).unwrap();
         let chain = robot.chain();
         assert_eq!(chain.aligned_steps(), chain.dof(), "{name}");
     }

@@ -1,6 +1,6 @@
 //! Property tests (proptest) over random DH tables and configurations.
 
-use kinserve::kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 use proptest::prelude::*;
 

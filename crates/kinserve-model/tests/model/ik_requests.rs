@@ -5,14 +5,14 @@
 
 use std::time::{Duration, Instant};
 
-use kinserve::model::{
+use kinserve_model::{
     AngleUnit, FkOptions, IkBatchSpec, IkSpec, IkTargetSpec, QuaternionSpec, ReferenceFrame, Robot,
     load_robot_file,
 };
 use serde_json::json;
 
 fn load(name: &str) -> Robot {
-    let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/../../robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
     load_robot_file(std::path::Path::new(&path)).unwrap()
 }
 
@@ -254,7 +254,7 @@ fn the_jacobian_of_a_joint_vector_is_per_radian_in_either_unit() {
     let q_rad: [f64; 6] = [0.2, -0.4, 0.5, 0.5, -0.6, 0.7];
     let mut q_deg = q_rad;
     for (x, j) in q_deg.iter_mut().zip(r.joints()) {
-        if j.kind == kinserve::kinematics::JointKind::Revolute {
+        if j.kind == kinserve_kinematics::JointKind::Revolute {
             *x = x.to_degrees();
         }
     }

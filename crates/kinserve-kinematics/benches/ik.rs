@@ -2,19 +2,19 @@
 //! with every frame (criterion), and IK solve times per solve — median, p90,
 //! p99 and convergence rate over 500 random in-limit configurations of each
 //! shipped 6- and 7-joint arm, unseeded and seeded (tracking a moving target
-//! from the previous answer). Run with `cargo bench --bench ik`.
+//! from the previous answer). Run with `cargo bench -p kinserve-kinematics --bench ik`.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
 
 use criterion::{Criterion, criterion_group};
-use kinserve::kinematics::ik::{IkOptions, IkSolver};
-use kinserve::kinematics::{JacobianFrame, JointKind, Transform};
-use kinserve::model::{Robot, load_robot_file};
+use kinserve_kinematics::ik::{IkOptions, IkSolver};
+use kinserve_kinematics::{JacobianFrame, JointKind, Transform};
+use kinserve_model::{Robot, load_robot_file};
 
 fn robot(name: &str) -> Robot {
-    let path = format!("{}/robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/../../robots/{name}.json", env!("CARGO_MANIFEST_DIR"));
     load_robot_file(Path::new(&path)).expect("robot file loads")
 }
 

@@ -412,7 +412,7 @@ fn planar_arm_prints_the_lecture_18_form_exactly() {
 fn spatial_3r_prints_the_lecture_13_form() {
     // Lecture 13 (000), ^0T_3 of the 3R arm. Slip in the notes: the second
     // printed copy ("Validation" slide) drops c1 and s1 from p_x and p_y; the
-    // first copy, used here, matches the product (see tests/core/closed_forms.rs).
+    // first copy, used here, matches the product (see crates/kinserve-kinematics/tests/kinematics/closed_forms.rs).
     assert_notes_form(
         "spatial_3r",
         [
@@ -502,7 +502,8 @@ fn cylindrical_robot_and_spherical_wrist_print_the_lecture_forms() {
     );
     // Lecture 13 (000): ^3T_6 of the wrist; the robot file numbers its rows
     // 1-3, so θ4, θ5, θ6, d6 of the notes are θ1, θ2, θ3, d3 here. (Lecture 19's
-    // copy of this wrist has two slips, see tests/core/closed_forms.rs.)
+    // copy of this wrist has two slips, see
+    // crates/kinserve-kinematics/tests/kinematics/closed_forms.rs.)
     assert_notes_form(
         "spherical_wrist",
         [

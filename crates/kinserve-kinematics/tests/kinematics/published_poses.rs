@@ -15,13 +15,13 @@
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 use std::path::Path;
 
-use kinserve::model::{Robot, load_robot_file};
+use kinserve_model::{Robot, load_robot_file};
 use kinserve_testkit::RobotExt;
 
 type M4 = [[f64; 4]; 4];
 
 fn load(name: &str) -> Robot {
-    let path = format!("{}/robots/{}.json", env!("CARGO_MANIFEST_DIR"), name);
+    let path = format!("{}/../../robots/{}.json", env!("CARGO_MANIFEST_DIR"), name);
     load_robot_file(Path::new(&path)).unwrap_or_else(|e| panic!("{path}: {e:?}"))
 }
 
