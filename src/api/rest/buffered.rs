@@ -34,7 +34,7 @@ use tokio::time::Instant;
 use super::body_budget::Reservation;
 use super::conn::{BodyTicket, ConnActivity};
 use super::problem::ApiError;
-use super::{AppState, refuse_unread};
+use super::{Admission, AppState, refuse_unread};
 use crate::error::Error;
 
 /// Answers smaller than this are not counted against the response budget
@@ -68,17 +68,18 @@ fn too_large(limit: usize) -> Error {
     }
 }
 
-/// Reads the body of `req` (when it has one) within the route's limit, the
-/// request byte budget and the body timeouts; returns the request with the
-/// body in memory and the budget it holds, or the refusal to send.
+/// Reads the body of `req` (when it has one) within the limit of the route's
+/// admission, the request byte budget and the body timeouts; returns the
+/// request with the body in memory and the budget it holds, or the refusal to send.
 pub async fn read_body(
     req: Request,
     state: &AppState,
+    admission: Admission,
 ) -> Result<(Request, Option<Reservation>), Response> {
     if !read_ahead(&req) {
         return Ok((req, None));
     }
-    let limit = body_limit(req.uri().path(), &state.settings);
+    let limit = body_limit(admission, &state.settings);
     let declared = req
         .headers()
         .get(header::CONTENT_LENGTH)
@@ -146,13 +147,12 @@ fn stalled(idle: std::time::Duration, state: &AppState) -> Error {
     }
 }
 
-/// The largest body a route takes: the batch limit on `…/batch` routes, the
-/// body limit elsewhere.
-pub(super) fn body_limit(path: &str, settings: &super::RestSettings) -> usize {
-    if path.ends_with("/batch") {
-        settings.max_batch_body_bytes
-    } else {
-        settings.max_body_bytes
+/// The largest body a route takes: the batch limit on the routes admitted as
+/// batches, the body limit elsewhere.
+pub(super) fn body_limit(admission: Admission, settings: &super::RestSettings) -> usize {
+    match admission {
+        Admission::Batch => settings.max_batch_body_bytes,
+        Admission::Single => settings.max_body_bytes,
     }
 }
 

@@ -12,7 +12,8 @@ use crate::error::Error;
 use crate::model::parse_json;
 
 /// A JSON body parsed with field paths. Checks the content type (415), the
-/// body size (413: the batch limit on `…/batch` routes, the body limit elsewhere)
+/// body size (413: the batch limit on the routes admitted as batches, the
+/// body limit elsewhere; see [`super::Admission`])
 /// and the JSON (400 / 422).
 pub struct JsonBody<T>(pub T);
 
@@ -60,7 +61,12 @@ impl<T: DeserializeOwned> JsonBody<T> {
                 });
             }
         }
-        let limit = super::buffered::body_limit(req.uri().path(), &state.settings);
+        let admission = req
+            .extensions()
+            .get::<super::Admission>()
+            .copied()
+            .unwrap_or_default();
+        let limit = super::buffered::body_limit(admission, &state.settings);
         let bytes = axum::body::to_bytes(req.into_body(), limit)
             .await
             .map_err(|e| super::buffered::unreadable(&e, limit))?;

@@ -10,6 +10,7 @@ mod handlers;
 mod openapi;
 mod playground;
 pub mod problem;
+mod routes;
 mod streamed;
 mod strict;
 mod velocity;
@@ -23,7 +24,6 @@ use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, Method, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
 use metrics::SharedString;
 use metrics_exporter_prometheus::PrometheusHandle;
 use tokio::sync::Semaphore;
@@ -44,8 +44,6 @@ pub use dto::{
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use problem::{ApiError, Problem, ProblemField};
-
-use openapi::Complete;
 
 use crate::error::Error;
 use crate::service::Service;
@@ -139,21 +137,21 @@ impl Modify for SecurityAddon {
     }
 }
 
-/// The OpenAPI 3.1 document of the REST API.
+/// The parts of the OpenAPI 3.1 document that no route declares: its info,
+/// the WebSocket message schemas and the security scheme. The paths come
+/// from the routes (see [`routes`]); [`openapi`] is the whole document.
 #[derive(OpenApi)]
 #[openapi(
     info(title = "kinserve", description = "Forward, velocity and inverse kinematics of serial robots (Denavit–Hartenberg tables)."),
-    paths(
-        handlers::healthz, handlers::readyz, handlers::list_robots, handlers::get_robot,
-        handlers::create_robot, handlers::put_robot, handlers::delete_robot,
-        handlers::fk, handlers::fk_batch, handlers::link_transforms, velocity::jacobian, velocity::jacobian_batch,
-        velocity::ik, velocity::ik_batch, ws::stream, metrics_text,
-        export::closed_form, export::urdf
-    ),
     components(schemas(WsRequest, dto::WsReply, dto::WsJacobian, dto::WsIk)),
-    modifiers(&SecurityAddon, &Complete)
+    modifiers(&SecurityAddon)
 )]
-pub struct ApiDoc;
+struct ApiDoc;
+
+/// The OpenAPI 3.1 document of the REST API, as `/openapi.json` serves it.
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    routes::document()
+}
 
 /// Prometheus metrics in text exposition format.
 #[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200,
@@ -261,15 +259,32 @@ pub(crate) fn check_origin(
     })
 }
 
+/// How a route is admitted, set where it is declared (see [`routes`]) and
+/// left in the request's extensions for the body extractor.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) enum Admission {
+    /// One request: the body limit (`--max-body-bytes`).
+    #[default]
+    Single,
+    /// A batch: the batch body limit (`--max-batch-body-bytes`), then one of
+    /// the batch slots (`--max-concurrent-batches`).
+    Batch,
+}
+
 /// Admission control and request timeout. The request body is read first,
 /// without a permit (see [`buffered::read_body`]); then, past the concurrency
 /// limit, a request is answered 503 at once instead of queueing; a request
 /// over the time limit gets 503. Batch requests then wait for one of the
 /// batch slots (within the request timeout). A large answer is counted against the
 /// response byte budget (see [`buffered::hold_response`]).
-async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+async fn admit(
+    State((state, admission)): State<(AppState, Admission)>,
+    mut req: Request,
+    next: Next,
+) -> Response {
+    req.extensions_mut().insert(admission);
     let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
-    let (req, body_bytes) = match buffered::read_body(req, &state).await {
+    let (req, body_bytes) = match buffered::read_body(req, &state, admission).await {
         Ok(read) => read,
         Err(refusal) => return refusal,
     };
@@ -282,17 +297,16 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
         );
     };
     let _body_bytes = body_bytes;
-    let batch = req.uri().path().ends_with("/batch");
     let run = async {
-        let _slot = match batch {
-            true => state
+        let _slot = match admission {
+            Admission::Batch => state
                 .budgets()
                 .batch_slots
                 .clone()
                 .acquire_owned()
                 .await
                 .ok(),
-            false => None,
+            Admission::Single => None,
         };
         next.run(req).await
     };
@@ -306,35 +320,35 @@ async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Respo
     buffered::hold_response(resp, &state, conn)
 }
 
-/// The route label of a matched path, without allocating for the known routes.
+/// The route label of a request: the template of the route it matched
+/// (`/v1/robots/{name}/fk`), `unmatched` when none did. Only declared
+/// templates are labels, so their number is bounded by the router's routes.
 fn route_label(path: Option<&MatchedPath>) -> SharedString {
-    const ROUTES: &[&str] = &[
-        "/v1/robots/{name}/fk",
-        "/v1/robots/{name}/fk/batch",
-        "/v1/robots/{name}/fk/stream",
-        "/v1/robots/{name}/jacobian",
-        "/v1/robots/{name}/jacobian/batch",
-        "/v1/robots/{name}/ik",
-        "/v1/robots/{name}/ik/batch",
-        "/v1/robots/{name}/closed-form",
-        "/v1/robots/{name}/link-transforms",
-        "/v1/robots/{name}/urdf",
-        "/v1/robots/{name}",
-        "/v1/robots",
-        "/healthz",
-        "/readyz",
-        "/metrics",
-        "/",
-        "/playground/{file}",
-        "/openapi.json",
-    ];
     match path {
         None => SharedString::const_str("unmatched"),
-        Some(m) => match ROUTES.iter().find(|r| **r == m.as_str()) {
-            Some(r) => SharedString::const_str(r),
-            None => SharedString::from(m.as_str().to_owned()),
-        },
+        Some(m) => SharedString::const_str(intern(m.as_str())),
     }
+}
+
+/// `template` as a `&'static str`, kept the first time it is seen, so a
+/// request's label costs no allocation. Only route templates come here:
+/// what is kept is bounded by the routes the process declares.
+fn intern(template: &str) -> &'static str {
+    use std::collections::BTreeSet;
+    use std::sync::{PoisonError, RwLock};
+    static TEMPLATES: RwLock<BTreeSet<&'static str>> = RwLock::new(BTreeSet::new());
+    let seen = TEMPLATES.read().unwrap_or_else(PoisonError::into_inner);
+    if let Some(kept) = seen.get(template) {
+        return kept;
+    }
+    drop(seen);
+    let mut all = TEMPLATES.write().unwrap_or_else(PoisonError::into_inner);
+    if let Some(kept) = all.get(template) {
+        return kept;
+    }
+    let kept: &'static str = Box::leak(template.into());
+    all.insert(kept);
+    kept
 }
 
 fn method_label(m: &Method) -> SharedString {
@@ -485,66 +499,12 @@ pub fn router(state: AppState) -> Router {
 /// ids, CORS). For tests of that wiring (e.g. a route that panics); the server
 /// itself uses [`router`].
 pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
-    let admin = Router::new()
-        .route(
-            "/v1/robots",
-            get(handlers::list_robots).post(handlers::create_robot),
-        )
-        .route(
-            "/v1/robots/{name}",
-            get(handlers::get_robot)
-                .put(handlers::put_robot)
-                .delete(handlers::delete_robot),
-        )
-        // The token is checked before the body is read (`admit` reads it).
-        .route_layer(middleware::from_fn_with_state(state.clone(), admit))
-        .route_layer(middleware::from_fn_with_state(state.clone(), require_token));
-    let fk = Router::new()
-        .route("/v1/robots/{name}/fk", axum::routing::post(handlers::fk))
-        .route(
-            "/v1/robots/{name}/fk/batch",
-            axum::routing::post(handlers::fk_batch),
-        )
-        // GET: the HTTP/1.1 upgrade; CONNECT: WebSockets over HTTP/2 (RFC 8441).
-        .route(
-            "/v1/robots/{name}/fk/stream",
-            get(ws::stream).connect(ws::stream),
-        )
-        .route(
-            "/v1/robots/{name}/jacobian",
-            axum::routing::post(velocity::jacobian),
-        )
-        .route(
-            "/v1/robots/{name}/jacobian/batch",
-            axum::routing::post(velocity::jacobian_batch),
-        )
-        .route("/v1/robots/{name}/ik", axum::routing::post(velocity::ik))
-        .route(
-            "/v1/robots/{name}/ik/batch",
-            axum::routing::post(velocity::ik_batch),
-        );
-    let export = Router::new()
-        .route(
-            "/v1/robots/{name}/link-transforms",
-            axum::routing::post(handlers::link_transforms),
-        )
-        .route("/v1/robots/{name}/closed-form", get(export::closed_form))
-        .route("/v1/robots/{name}/urdf", get(export::urdf));
-    let api = fk
-        .merge(export)
-        .merge(extra)
-        .route_layer(middleware::from_fn_with_state(state.clone(), admit))
-        .merge(admin)
-        .route("/healthz", get(handlers::healthz))
-        .route("/readyz", get(handlers::readyz))
-        .route("/metrics", get(metrics_text))
-        .route("/", get(playground::index))
-        .route("/playground/{file}", get(playground::file));
+    let (api, doc) = routes::api(&state, extra);
     let cors = cors(&state.settings.cors_origins);
     let access_log = state.settings.access_log;
     // validatorUrl "none": Swagger UI must not send the spec's URL to the public validator.
     let swagger = SwaggerUi::new("/docs")
-        .url("/openapi.json", ApiDoc::openapi())
+        .url("/openapi.json", doc)
         .config(utoipa_swagger_ui::Config::new(["/openapi.json"]).validator_url("none"));
     api.merge(swagger)
         .fallback(handlers::not_found)
