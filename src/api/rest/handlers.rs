@@ -11,7 +11,6 @@ use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
-use crate::api::pose_format::{FormattedPose, FormattedPoses};
 use crate::error::Error;
 use crate::model::RobotSpec;
 use crate::registry::{Condition, Entry, Origin, PutMode};
@@ -300,15 +299,13 @@ pub async fn fk(
         .service
         .fk_with_frames(robot, &req.joints, &opts, req.frames)?;
     entry.count_poses(Protocol::Rest, 1);
-    let format = req.pose_format;
-    json_response(&FkReply {
-        robot: robot.name(),
-        length_unit: robot.length_unit(),
-        pose: FormattedPose::new(format, pose),
-        frames: frames
-            .as_deref()
-            .map(|poses| FormattedPoses { format, poses }),
-    })
+    json_response(&FkReply::new(
+        robot.name(),
+        robot.length_unit(),
+        req.pose_format,
+        pose,
+        frames.as_deref(),
+    ))
 }
 
 /// A 200 `application/json` answer, serialised here (the body borrows from

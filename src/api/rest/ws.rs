@@ -17,7 +17,7 @@ use super::dto::{WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
-use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
+use crate::api::pose_format::PoseFormat;
 use crate::error::Error;
 use crate::telemetry::{Protocol, StreamGuard};
 
@@ -243,13 +243,8 @@ async fn answer_pending(
 fn error_reply(id: &serde_json::Value, e: &Error) -> String {
     crate::telemetry::ws_message(false);
     let reply = WsReply {
-        id,
-        length_unit: None,
-        pose: None,
-        frames: None,
-        jacobian: None,
-        ik: None,
         error: Some(Problem::from_error(e)),
+        ..WsReply::empty(id)
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }
@@ -296,11 +291,6 @@ async fn ik_reply(
         Ok(a) => {
             crate::telemetry::ws_message(true);
             let reply = WsReply {
-                id: &req.id,
-                length_unit: Some(length_unit),
-                pose: Some(FormattedPose::new(PoseFormat::Full, a.pose)),
-                frames: None,
-                jacobian: None,
                 ik: Some(WsIk {
                     joints: a.joints,
                     converged: a.converged,
@@ -308,7 +298,7 @@ async fn ik_reply(
                     orientation_error: a.orientation_error,
                     iterations: a.iterations,
                 }),
-                error: None,
+                ..WsReply::posed(&req.id, length_unit, PoseFormat::Full, a.pose, None)
             };
             serde_json::to_string(&reply).unwrap_or_default()
         }
@@ -353,17 +343,15 @@ fn fk_reply(
     };
     entry.count_poses(Protocol::WebSocket, 1);
     crate::telemetry::ws_message(true);
-    let format = req.pose_format;
     let reply = WsReply {
-        id: &req.id,
-        length_unit: Some(robot.length_unit()),
-        pose: Some(FormattedPose::new(format, pose)),
-        frames: frames
-            .as_deref()
-            .map(|poses| FormattedPoses { format, poses }),
         jacobian,
-        ik: None,
-        error: None,
+        ..WsReply::posed(
+            &req.id,
+            robot.length_unit(),
+            req.pose_format,
+            pose,
+            frames.as_deref(),
+        )
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }
