@@ -74,13 +74,13 @@ pub struct PosePosition(pub [f64; 3]);
 /// Several poses in `"pose_format": "matrix"`, each a `PoseMatrix` (12
 /// numbers).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!([[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526, 0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184, 0.0, 0.0, 1.0, 0.0], [1.0, -0.0, 0.0, 1.0, 0.0, 1.0, -0.0, 0.0, 0.0, 0.0, 1.0, 0.0]]))]
+#[schema(example = json!([[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526, 0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184, 0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.7, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]]))]
 pub struct PoseMatrices(pub Vec<PoseMatrix>);
 
 /// Several poses in `"pose_format": "position"`, each a `PosePosition`
 /// (`[x, y, z]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!([[0.5986337092290526, 0.36116295746019184, 0.0], [1.0, 0.0, 0.0]]))]
+#[schema(example = json!([[0.5986337092290526, 0.36116295746019184, 0.0], [0.7, 0.0, 0.0]]))]
 pub struct PosePositions(pub Vec<PosePosition>);
 
 /// Result of one FK evaluation, as REST and the CLI return it. Each pose
