@@ -130,8 +130,12 @@ fn fk(args: &FkArgs) -> ExitCode {
             let out = FkOutput {
                 robot: robot.name().to_string(),
                 length_unit: robot.length_unit(),
-                pose: Pose::from(&t),
+                pose: Some(Pose::from(&t)),
+                matrix: None,
+                position: None,
                 frames,
+                frame_matrices: None,
+                frame_positions: None,
             };
             match serde_json::to_string_pretty(&out) {
                 Ok(s) => {

@@ -1,6 +1,9 @@
-//! The pose representation returned to clients over REST, WebSocket and the
-//! CLI (gRPC has its own messages in `grpc::convert`). Depends on the model
-//! and kinematics crates only.
+//! The pose representations returned to clients over REST, WebSocket and the
+//! CLI (gRPC has its own messages in `grpc::convert`): the full [`Pose`]
+//! object, and the compact ones ([`PoseMatrix`], [`PosePosition`]) as the
+//! OpenAPI document names them. Depends on the model and kinematics crates
+//! only (not on [`crate::api::pose_format`], which writes answers in these
+//! shapes straight from the transforms).
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -54,7 +57,37 @@ impl Pose {
     }
 }
 
-/// Result of one FK evaluation, as REST and the CLI return it.
+/// A pose in `"pose_format": "matrix"`: the top three rows of the
+/// homogeneous matrix, row-major (`[r11, r12, r13, x, r21, r22, r23, y, r31,
+/// r32, r33, z]`), the same numbers as the first 12 of the full pose's
+/// `matrix`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(min_items = 12, max_items = 12, example = json!([0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526, 0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184, 0.0, 0.0, 1.0, 0.0]))]
+pub struct PoseMatrix(pub [f64; 12]);
+
+/// A pose in `"pose_format": "position"`: `[x, y, z]` in the robot's
+/// length unit, the full pose's `position`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(min_items = 3, max_items = 3, example = json!([0.5986337092290526, 0.36116295746019184, 0.0]))]
+pub struct PosePosition(pub [f64; 3]);
+
+/// Several poses in `"pose_format": "matrix"`, each a `PoseMatrix` (12
+/// numbers).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!([[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526, 0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184, 0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.7, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]]))]
+pub struct PoseMatrices(pub Vec<PoseMatrix>);
+
+/// Several poses in `"pose_format": "position"`, each a `PosePosition`
+/// (`[x, y, z]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!([[0.5986337092290526, 0.36116295746019184, 0.0], [0.7, 0.0, 0.0]]))]
+pub struct PosePositions(pub Vec<PosePosition>);
+
+/// Result of one FK evaluation, as REST and the CLI return it. Each pose
+/// comes in exactly one field, chosen by the request's `pose_format`: `pose`
+/// and `frames` (`full`, the default, and always from the CLI), `matrix` and
+/// `frame_matrices` (`matrix`) or `position` and `frame_positions`
+/// (`position`). The frame fields are present only with `"frames": true`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "pose": {"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}}))]
 pub struct FkOutput {
@@ -62,13 +95,33 @@ pub struct FkOutput {
     pub robot: String,
     /// Length unit of every position in this result.
     pub length_unit: LengthUnit,
-    /// Tool pose `^world T_tool`, in the request's `pose_format` (over REST;
-    /// the CLI always gives the full object).
-    #[schema(value_type = crate::api::pose_format::PoseValue)]
-    pub pose: Pose,
-    /// Only when asked for: `^world T_i` for `i = 0..=rows` (0 = base frame,
-    /// last = flange), in the same format as `pose`.
+    /// Tool pose `^world T_tool` as the full pose object. Present when
+    /// `pose_format` is `full` (the default); absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<crate::api::pose_format::PoseValue>>)]
+    #[schema(value_type = Pose)]
+    pub pose: Option<Pose>,
+    /// Tool pose as 12 numbers. Present only when `pose_format` is `matrix`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PoseMatrix)]
+    pub matrix: Option<PoseMatrix>,
+    /// Tool position `[x, y, z]`. Present only when `pose_format` is
+    /// `position`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePosition)]
+    pub position: Option<PosePosition>,
+    /// `^world T_i` for `i = 0..=rows` (0 = base frame, last = flange) as full
+    /// pose objects. Present when `"frames": true` and `pose_format` is `full`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Vec<Pose>)]
     pub frames: Option<Vec<Pose>>,
+    /// The frames (as `frames`) as 12 numbers each. Present only when
+    /// `"frames": true` and `pose_format` is `matrix`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PoseMatrices)]
+    pub frame_matrices: Option<PoseMatrices>,
+    /// The frames' positions (as `frames`), `[x, y, z]` each. Present only
+    /// when `"frames": true` and `pose_format` is `position`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePositions)]
+    pub frame_positions: Option<PosePositions>,
 }

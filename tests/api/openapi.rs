@@ -147,6 +147,63 @@ async fn the_fk_examples_are_what_the_server_answers() {
     );
 }
 
+/// Whether two JSON arrays of numbers (possibly nested) are equal to `tol`.
+fn numbers_close(a: &Value, b: &Value, tol: f64) -> bool {
+    match (a, b) {
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(a, b)| numbers_close(a, b, tol))
+        }
+        (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
+            (Some(x), Some(y)) => (x - y).abs() <= tol,
+            _ => false,
+        },
+        _ => false,
+    }
+}
+
+/// The compact pose schemas' examples are the server's answers to the FK
+/// request examples in that format, in the format's own field.
+#[tokio::test]
+async fn the_compact_pose_examples_are_what_the_server_answers() {
+    let app = spawn_app().await;
+    let doc = document(&app).await;
+    let schemas = &doc["components"]["schemas"];
+    let cases = [
+        ("fk", "FkRequest", "matrix", "matrix", "PoseMatrix"),
+        ("fk", "FkRequest", "position", "position", "PosePosition"),
+        (
+            "fk/batch",
+            "FkBatchRequest",
+            "matrix",
+            "matrices",
+            "PoseMatrices",
+        ),
+        (
+            "fk/batch",
+            "FkBatchRequest",
+            "position",
+            "positions",
+            "PosePositions",
+        ),
+    ];
+    for (path, request, format, field, schema) in cases {
+        let mut body = schemas[request]["example"].clone();
+        body["pose_format"] = format.into();
+        let r = app
+            .post(&format!("/v1/robots/planar_2dof/{path}"), &body)
+            .await;
+        assert_eq!(r.status(), 200, "{schema}");
+        let got: Value = r.json().await.unwrap();
+        let example = &schemas[schema]["example"];
+        assert!(example.is_array(), "{schema} has an example");
+        assert!(
+            numbers_close(&got[field], example, 1e-12),
+            "{schema} example: the server answers {}",
+            got[field]
+        );
+    }
+}
+
 #[tokio::test]
 async fn swagger_ui_never_calls_the_public_validator() {
     let app = spawn_app().await;

@@ -97,30 +97,49 @@ struct BatchBody<'a> {
     pose_format: Option<&'static str>,
 }
 
-/// A compact single reply: the pose is an array of numbers.
+/// A compact single reply: the pose in the field of its format (`matrix`:
+/// 12 numbers, `position`: 3).
 #[derive(serde::Deserialize)]
 struct CompactSingleReply {
-    pose: Vec<f64>,
+    matrix: Option<Vec<f64>>,
+    position: Option<Vec<f64>>,
 }
 
-/// A compact batch reply: each pose is an array of numbers.
+/// A compact batch reply: the poses in the field of their format
+/// (`matrices` or `positions`), each an array of numbers.
 #[derive(serde::Deserialize)]
 struct CompactBatchReply {
-    poses: Vec<Vec<f64>>,
+    matrices: Option<Vec<Vec<f64>>>,
+    positions: Option<Vec<Vec<f64>>>,
+}
+
+/// Of the fields a compact reply may carry (`matrix`-format one first), the
+/// one of `format`.
+fn field_of<T>(format: PoseFormat, matrix: Option<T>, position: Option<T>) -> Option<T> {
+    match format {
+        PoseFormat::Full => None,
+        PoseFormat::Matrix => matrix,
+        PoseFormat::Position => position,
+    }
 }
 
 /// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
 fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<f64>>, String> {
     let decoded = match (format, batch) {
         (PoseFormat::Full, false) => {
-            serde_json::from_slice::<SingleReply>(bytes).map(|v| vec![flat(&v.pose.matrix)])
+            serde_json::from_slice::<SingleReply>(bytes).map(|v| Some(vec![flat(&v.pose.matrix)]))
         }
         (PoseFormat::Full, true) => serde_json::from_slice::<BatchReply>(bytes)
-            .map(|v| v.poses.iter().map(|p| flat(&p.matrix)).collect()),
-        (_, false) => serde_json::from_slice::<CompactSingleReply>(bytes).map(|v| vec![v.pose]),
-        (_, true) => serde_json::from_slice::<CompactBatchReply>(bytes).map(|v| v.poses),
+            .map(|v| Some(v.poses.iter().map(|p| flat(&p.matrix)).collect())),
+        (_, false) => serde_json::from_slice::<CompactSingleReply>(bytes)
+            .map(|v| field_of(format, v.matrix, v.position).map(|p| vec![p])),
+        (_, true) => serde_json::from_slice::<CompactBatchReply>(bytes)
+            .map(|v| field_of(format, v.matrices, v.positions)),
     };
-    decoded.map_err(|_| "decode".to_string())
+    match decoded {
+        Ok(Some(poses)) => Ok(poses),
+        _ => Err("decode".to_string()),
+    }
 }
 
 /// The numbers of each pose of a gRPC answer: the Pose messages' matrices
@@ -149,12 +168,15 @@ struct WsMessage<'a> {
     pose_format: Option<&'static str>,
 }
 
-/// A WebSocket reply: its id and the pose (typed by the format asked for)
-/// or the error; other fields are skipped.
+/// A WebSocket reply: its id and the pose (in the field of the format asked
+/// for: `pose`, `matrix` or `position`) or the error; other fields are
+/// skipped.
 #[derive(serde::Deserialize)]
-struct WsReply<P> {
+struct WsReply {
     id: Option<u64>,
-    pose: Option<P>,
+    pose: Option<MatrixOnly>,
+    matrix: Option<Vec<f64>>,
+    position: Option<Vec<f64>>,
     error: Option<WsError>,
 }
 
@@ -166,18 +188,19 @@ struct WsError {
 /// A WebSocket reply as the worker sees it (typed decoding: cheap on the
 /// client, which shares the machine with the server).
 fn decode_ws(text: &str, format: PoseFormat) -> Reply {
-    let decoded = match format {
-        PoseFormat::Full => serde_json::from_str::<WsReply<MatrixOnly>>(text)
-            .map(|r| (r.id, r.pose.map(|p| flat(&p.matrix)), r.error)),
-        _ => serde_json::from_str::<WsReply<Vec<f64>>>(text).map(|r| (r.id, r.pose, r.error)),
+    let Ok(r) = serde_json::from_str::<WsReply>(text) else {
+        return Reply::Closed("decode".into());
     };
-    match decoded {
-        Ok((id, Some(pose), _)) => Reply::Pose(id.unwrap_or(u64::MAX), pose),
-        Ok((id, None, error)) => {
-            let status = error.and_then(|e| e.status).unwrap_or(0);
-            Reply::Error(id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
+    let pose = match format {
+        PoseFormat::Full => r.pose.map(|p| flat(&p.matrix)),
+        _ => field_of(format, r.matrix, r.position),
+    };
+    match pose {
+        Some(pose) => Reply::Pose(r.id.unwrap_or(u64::MAX), pose),
+        None => {
+            let status = r.error.and_then(|e| e.status).unwrap_or(0);
+            Reply::Error(r.id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
         }
-        Err(_) => Reply::Closed("decode".into()),
     }
 }
 
@@ -681,4 +704,40 @@ fn settle(plan: &Plan, head: InFlight, reply: Reply, tally: &mut Tally) -> bool 
         }
     }
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rest_replies_are_read_from_the_field_of_their_format() {
+        let single = br#"{"robot":"r","length_unit":"m","matrix":[1,2,3,4,5,6,7,8,9,10,11,12]}"#;
+        let got = decode_rest(single, false, PoseFormat::Matrix).unwrap();
+        assert_eq!(got, vec![(1..=12).map(f64::from).collect::<Vec<_>>()]);
+        let batch = br#"{"robot":"r","length_unit":"m","positions":[[1,2,3],[4,5,6]]}"#;
+        let got = decode_rest(batch, true, PoseFormat::Position).unwrap();
+        assert_eq!(got, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
+        // The shape before the compact fields (numbers in `pose`/`poses`)
+        // and a field of another format are not an answer.
+        assert!(decode_rest(br#"{"pose":[1,2,3]}"#, false, PoseFormat::Position).is_err());
+        assert!(decode_rest(br#"{"poses":[[1,2,3]]}"#, true, PoseFormat::Position).is_err());
+        assert!(decode_rest(batch, true, PoseFormat::Matrix).is_err());
+    }
+
+    #[test]
+    fn websocket_replies_are_read_from_the_field_of_their_format() {
+        let r = decode_ws(
+            r#"{"id":4,"length_unit":"m","position":[1,2,3]}"#,
+            PoseFormat::Position,
+        );
+        assert!(matches!(r, Reply::Pose(4, ref p) if p == &[1.0, 2.0, 3.0]));
+        let full = r#"{"id":5,"pose":{"matrix":[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}}"#;
+        let r = decode_ws(full, PoseFormat::Full);
+        assert!(matches!(r, Reply::Pose(5, ref p) if p.len() == 16 && p[3] == 1.0));
+        let r = decode_ws(r#"{"id":6,"error":{"status":422}}"#, PoseFormat::Matrix);
+        assert!(matches!(r, Reply::Error(6, ref e) if e == "ws_error_422"));
+        let r = decode_ws(r#"{"id":7,"position":[1,2,3]}"#, PoseFormat::Matrix);
+        assert!(matches!(r, Reply::Error(7, _)));
+    }
 }

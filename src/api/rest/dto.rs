@@ -3,7 +3,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat, PoseValue};
+use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositions};
+use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
+use crate::kinematics::Transform;
 use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
 use crate::model::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
@@ -224,8 +226,8 @@ impl From<JacobianBatchRequest> for JacobianBatchSpec {
 }
 
 /// `POST /v1/robots/{name}/fk` response as it is written: [`FkOutput`] with
-/// the pose and frames in the request's `pose_format`, serialised straight
-/// from the transforms.
+/// the pose and frames in the fields of the request's `pose_format`,
+/// serialised straight from the transforms.
 ///
 /// [`FkOutput`]: crate::api::pose::FkOutput
 #[derive(Debug, Serialize)]
@@ -234,14 +236,54 @@ pub struct FkReply<'a> {
     pub robot: &'a str,
     /// Length unit of every position.
     pub length_unit: LengthUnit,
-    /// Tool pose.
-    pub pose: FormattedPose,
-    /// Every frame, when asked for.
+    /// Tool pose (`full`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub frames: Option<FormattedPoses<'a>>,
+    pub pose: Option<One<AsPose>>,
+    /// Tool pose (`matrix`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub matrix: Option<One<AsMatrix>>,
+    /// Tool position (`position`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub position: Option<One<AsPosition>>,
+    /// Every frame, when asked for (`full`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames: Option<Many<'a, AsPose>>,
+    /// Every frame, when asked for (`matrix`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_matrices: Option<Many<'a, AsMatrix>>,
+    /// Every frame's position, when asked for (`position`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_positions: Option<Many<'a, AsPosition>>,
 }
 
-/// `POST /v1/robots/{name}/fk/batch` response.
+impl<'a> FkReply<'a> {
+    /// The answer with `pose` and `frames` (when asked for) in `format`.
+    pub fn new(
+        robot: &'a str,
+        length_unit: LengthUnit,
+        format: PoseFormat,
+        pose: Transform,
+        frames: Option<&'a [Transform]>,
+    ) -> FkReply<'a> {
+        let p = pose_format::one(format, pose);
+        let f = pose_format::many(format, frames);
+        FkReply {
+            robot,
+            length_unit,
+            pose: p.full,
+            matrix: p.matrix,
+            position: p.position,
+            frames: f.full,
+            frame_matrices: f.matrix,
+            frame_positions: f.position,
+        }
+    }
+}
+
+/// `POST /v1/robots/{name}/fk/batch` response. The poses come in exactly one
+/// field, chosen by the request's `pose_format`: `poses` (`full`, the
+/// default), `matrices` (`matrix`) or `positions` (`position`).
+// Whichever it is, it is the last field written (`streamed` relies on it).
 #[derive(Debug, Serialize, ToSchema)]
 #[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "poses": [{"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}]}))]
 pub struct FkBatchResponse<'a> {
@@ -249,11 +291,40 @@ pub struct FkBatchResponse<'a> {
     pub robot: &'a str,
     /// Length unit of every position.
     pub length_unit: LengthUnit,
-    /// One pose per configuration, in request order, in the request's
-    /// `pose_format`: [`Pose`](crate::api::pose::Pose) objects (`full`), arrays of 12 numbers
-    /// (`matrix`) or of 3 (`position`).
-    #[schema(value_type = Vec<PoseValue>)]
-    pub poses: FormattedPoses<'a>,
+    /// One full pose object per configuration, in request order. Present
+    /// when `pose_format` is `full` (the default); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Vec<Pose>)]
+    pub poses: Option<Many<'a, AsPose>>,
+    /// One pose per configuration, in request order, as 12 numbers. Present
+    /// only when `pose_format` is `matrix`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PoseMatrices)]
+    pub matrices: Option<Many<'a, AsMatrix>>,
+    /// One position `[x, y, z]` per configuration, in request order. Present
+    /// only when `pose_format` is `position`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePositions)]
+    pub positions: Option<Many<'a, AsPosition>>,
+}
+
+impl<'a> FkBatchResponse<'a> {
+    /// The answer with `poses` in the field of `format`.
+    pub fn new(
+        robot: &'a str,
+        length_unit: LengthUnit,
+        format: PoseFormat,
+        poses: &'a [Transform],
+    ) -> FkBatchResponse<'a> {
+        let p = pose_format::many(format, Some(poses));
+        FkBatchResponse {
+            robot,
+            length_unit,
+            poses: p.full,
+            matrices: p.matrix,
+            positions: p.position,
+        }
+    }
 }
 
 /// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the
@@ -336,7 +407,11 @@ pub struct WsIdOnly {
     pub id: serde_json::Value,
 }
 
-/// A WebSocket reply.
+/// A WebSocket reply. On success the pose comes in exactly one field, chosen
+/// by the message's `pose_format` (FK and Jacobian replies; IK replies always
+/// carry `pose`): `pose` and `frames` (`full`, the default), `matrix` and
+/// `frame_matrices` (`matrix`) or `position` and `frame_positions`
+/// (`position`); the frame fields only with `"frames": true`.
 #[derive(Debug, Serialize, ToSchema)]
 #[schema(example = json!({"id": 1, "length_unit": "m", "pose": {"matrix": [[0.8253356149096783, -0.5646424733950354, 0.0, 0.5986337092290526], [0.5646424733950354, 0.8253356149096783, 0.0, 0.36116295746019184], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]], "position": [0.5986337092290526, 0.36116295746019184, 0.0], "quaternion": {"w": 0.955336489125606, "x": 0.0, "y": 0.0, "z": 0.2955202066613396}, "rpy": [0.0, -0.0, 0.6]}}))]
 pub struct WsReply<'a> {
@@ -346,15 +421,37 @@ pub struct WsReply<'a> {
     /// Length unit of every position in this reply, on success.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub length_unit: Option<LengthUnit>,
-    /// The tool pose, on success (for IK: the pose at the joints found,
-    /// always `full`), in the message's `pose_format`.
+    /// The tool pose as the full pose object, on success: for FK when
+    /// `pose_format` is `full` (the default), for IK always (the pose at the
+    /// joints found).
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<PoseValue>)]
-    pub pose: Option<FormattedPose>,
-    /// Every frame, when asked for, in the message's `pose_format`.
+    #[schema(value_type = Pose)]
+    pub pose: Option<One<AsPose>>,
+    /// The tool pose as 12 numbers, on success, only when `pose_format` is
+    /// `matrix`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<PoseValue>>)]
-    pub frames: Option<FormattedPoses<'a>>,
+    #[schema(value_type = PoseMatrix)]
+    pub matrix: Option<One<AsMatrix>>,
+    /// The tool position `[x, y, z]`, on success, only when `pose_format` is
+    /// `position`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePosition)]
+    pub position: Option<One<AsPosition>>,
+    /// Every frame as a full pose object, when `"frames": true` and
+    /// `pose_format` is `full`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Vec<Pose>)]
+    pub frames: Option<Many<'a, AsPose>>,
+    /// Every frame as 12 numbers, when `"frames": true` and `pose_format` is
+    /// `matrix`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PoseMatrices)]
+    pub frame_matrices: Option<Many<'a, AsMatrix>>,
+    /// Every frame's position `[x, y, z]`, when `"frames": true` and
+    /// `pose_format` is `position`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePositions)]
+    pub frame_positions: Option<Many<'a, AsPosition>>,
     /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
     #[serde(flatten)]
     pub jacobian: Option<WsJacobian>,
@@ -368,6 +465,48 @@ pub struct WsReply<'a> {
     /// The problem, on failure.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<super::problem::Problem>,
+}
+
+impl<'a> WsReply<'a> {
+    /// A reply to `id` with nothing in it yet.
+    pub fn empty(id: &'a serde_json::Value) -> WsReply<'a> {
+        WsReply {
+            id,
+            length_unit: None,
+            pose: None,
+            matrix: None,
+            position: None,
+            frames: None,
+            frame_matrices: None,
+            frame_positions: None,
+            jacobian: None,
+            ik: None,
+            link_transforms: None,
+            error: None,
+        }
+    }
+
+    /// A success reply with `pose` and `frames` (when asked for) in `format`.
+    pub fn posed(
+        id: &'a serde_json::Value,
+        length_unit: LengthUnit,
+        format: PoseFormat,
+        pose: Transform,
+        frames: Option<&'a [Transform]>,
+    ) -> WsReply<'a> {
+        let p = pose_format::one(format, pose);
+        let f = pose_format::many(format, frames);
+        WsReply {
+            length_unit: Some(length_unit),
+            pose: p.full,
+            matrix: p.matrix,
+            position: p.position,
+            frames: f.full,
+            frame_matrices: f.matrix,
+            frame_positions: f.position,
+            ..WsReply::empty(id)
+        }
+    }
 }
 
 /// The Jacobian part of a WebSocket reply (see [`crate::api::velocity::JacobianItem`]).

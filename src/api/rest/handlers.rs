@@ -12,7 +12,6 @@ use super::dto::{ListParams, Readiness, StoreState};
 use super::extract::{JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
-use crate::api::pose_format::{FormattedPose, FormattedPoses};
 use crate::error::Error;
 use crate::model::{FkBatchSpec, FkSpec, RobotSpec};
 use crate::registry::{Condition, Entry, Origin, PutMode};
@@ -300,15 +299,13 @@ pub async fn fk(
     let spec = FkSpec::from(req);
     let FkAnswer { pose, frames } = state.service.fk(robot, &spec)?;
     entry.count_poses(Protocol::Rest, 1);
-    let format = spec.pose_format;
-    json_response(&FkReply {
-        robot: robot.name(),
-        length_unit: robot.length_unit(),
-        pose: FormattedPose::new(format, pose),
-        frames: frames
-            .as_deref()
-            .map(|poses| FormattedPoses { format, poses }),
-    })
+    json_response(&FkReply::new(
+        robot.name(),
+        robot.length_unit(),
+        spec.pose_format,
+        pose,
+        frames.as_deref(),
+    ))
 }
 
 /// A 200 `application/json` answer, serialised here (the body borrows from

@@ -76,8 +76,8 @@ fn declared(
 /// pages no document lists (the playground), and the OpenAPI document they
 /// make (served at `/openapi.json`).
 pub(super) fn api(state: &AppState, extra: Router<AppState>) -> (Router<AppState>, OpenApi) {
-    let (router, mut doc) = declared(extra, |group, routes| admitted(group, routes, state))
-        .split_for_parts();
+    let (router, mut doc) =
+        declared(extra, |group, routes| admitted(group, routes, state)).split_for_parts();
     Complete.modify(&mut doc);
     let router = router
         .route("/", get(playground::index))
@@ -99,16 +99,14 @@ fn admitted(
     routes: OpenApiRouter<AppState>,
     state: &AppState,
 ) -> OpenApiRouter<AppState> {
-    let admit =
-        |admission: Admission| middleware::from_fn_with_state((state.clone(), admission), super::admit);
+    let admit = |admission: Admission| {
+        middleware::from_fn_with_state((state.clone(), admission), super::admit)
+    };
     match group {
         // The token is checked before the body is read (`admit` reads it).
-        Group::Registry => routes
-            .route_layer(admit(Admission::Single))
-            .route_layer(middleware::from_fn_with_state(
-                state.clone(),
-                super::require_token,
-            )),
+        Group::Registry => routes.route_layer(admit(Admission::Single)).route_layer(
+            middleware::from_fn_with_state(state.clone(), super::require_token),
+        ),
         Group::Single => routes.route_layer(admit(Admission::Single)),
         Group::Batch => routes.route_layer(admit(Admission::Batch)),
         Group::Open => routes,
@@ -160,7 +158,7 @@ mod tests {
         assert!(
             matches!(ok, Some(utoipa::openapi::RefOr::T(r))
                 if r.description == crate::api::rest::openapi::describe("413")),
-            "{ok:?}"
+            "the 413 answer of /fk/batch is not described by `Complete`"
         );
     }
 }

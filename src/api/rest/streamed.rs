@@ -23,7 +23,7 @@ use axum::response::{IntoResponse, Response};
 use http_body::{Frame, SizeHint};
 
 use super::dto::FkBatchResponse;
-use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
+use crate::api::pose_format::{FormattedPose, PoseFormat};
 use crate::error::Error;
 use crate::kinematics::Transform;
 
@@ -68,24 +68,15 @@ pub fn batch_answer(
     format: PoseFormat,
     poses: Vec<Transform>,
 ) -> Result<Response, Error> {
-    let whole = FkBatchResponse {
-        robot,
-        length_unit,
-        poses: FormattedPoses {
-            format,
-            poses: &poses,
-        },
-    };
+    let whole = FkBatchResponse::new(robot, length_unit, format, &poses);
     let estimate = estimated_bytes(format, poses.len());
     if estimate < STREAM_FROM_BYTES {
         return json_bytes(&whole, estimate + 128).map(json_answer);
     }
-    let empty = FkBatchResponse {
-        poses: FormattedPoses { format, poses: &[] },
-        ..whole
-    };
+    let empty = FkBatchResponse::new(robot, length_unit, format, &[]);
     let shell = json_bytes(&empty, 256)?;
-    // `poses` is the last field: the shell ends with `[]}`; the head keeps `[`.
+    // The poses' field (`poses`, `matrices` or `positions`, by format) is the
+    // last one written: the shell ends with `[]}`; the head keeps `[`.
     let Some(head) = shell.as_slice().strip_suffix(b"]}".as_slice()) else {
         return Err(internal("the batch answer does not end with its poses"));
     };
@@ -130,7 +121,8 @@ pub(super) fn json_answer(body: impl Into<Body>) -> Response {
         .into_response()
 }
 
-/// The body of a streamed batch answer: the answer's head (`{…,"poses":[`),
+/// The body of a streamed batch answer: the answer's head (`{…,"poses":[`,
+/// or `"matrices":[` or `"positions":[`),
 /// then the poses a frame at a time, then `]}`.
 struct PosesBody {
     head: Option<Bytes>,
@@ -213,11 +205,12 @@ mod tests {
     }
 
     fn whole(format: PoseFormat, poses: &[Transform]) -> Vec<u8> {
-        serde_json::to_vec(&FkBatchResponse {
-            robot: "puma560",
-            length_unit: LengthUnit::M,
-            poses: FormattedPoses { format, poses },
-        })
+        serde_json::to_vec(&FkBatchResponse::new(
+            "puma560",
+            LengthUnit::M,
+            format,
+            poses,
+        ))
         .unwrap()
     }
 

@@ -17,7 +17,7 @@ use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsJacobian, WsReply, WsReque
 use super::extract::{RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
-use crate::api::pose_format::{FormattedPose, FormattedPoses, PoseFormat};
+use crate::api::pose_format::PoseFormat;
 use crate::error::Error;
 use crate::model::{LengthUnit, StreamOp};
 use crate::service::StreamAnswer;
@@ -245,14 +245,8 @@ async fn answer_pending(
 fn error_reply(id: &serde_json::Value, e: &Error) -> String {
     crate::telemetry::ws_message(false);
     let reply = WsReply {
-        id,
-        length_unit: None,
-        pose: None,
-        frames: None,
-        jacobian: None,
-        ik: None,
-        link_transforms: None,
         error: Some(Problem::from_error(e)),
+        ..WsReply::empty(id)
     };
     serde_json::to_string(&reply).unwrap_or_default()
 }
@@ -298,11 +292,6 @@ async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
         StreamAnswer::Ik(a) => WsReply {
-            id,
-            length_unit: Some(length_unit),
-            pose: Some(FormattedPose::new(PoseFormat::Full, a.pose)),
-            frames: None,
-            jacobian: None,
             ik: Some(WsIk {
                 joints: a.joints.clone(),
                 converged: a.converged,
@@ -310,8 +299,7 @@ fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnsw
                 orientation_error: a.orientation_error,
                 iterations: a.iterations,
             }),
-            link_transforms: None,
-            error: None,
+            ..WsReply::posed(id, length_unit, PoseFormat::Full, a.pose, None)
         },
         StreamAnswer::Fk {
             fk,
@@ -319,19 +307,11 @@ fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnsw
             jacobian,
             link_transforms,
         } => WsReply {
-            id,
-            length_unit: Some(length_unit),
-            pose: Some(FormattedPose::new(*pose_format, fk.pose)),
-            frames: fk.frames.as_deref().map(|poses| FormattedPoses {
-                format: *pose_format,
-                poses,
-            }),
             jacobian: jacobian.as_ref().map(WsJacobian::from),
-            ik: None,
             link_transforms: link_transforms
                 .as_deref()
                 .map(|l| l.iter().map(LinkTransformItem::from).collect()),
-            error: None,
+            ..WsReply::posed(id, length_unit, *pose_format, fk.pose, fk.frames.as_deref())
         },
     };
     serde_json::to_string(&reply).unwrap_or_default()

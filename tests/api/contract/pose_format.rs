@@ -72,19 +72,16 @@ async fn batches_keep_request_order_in_every_format_over_rest_and_grpc() {
         let mut full = Vec::new();
         for format in FORMATS {
             let what = format!("{robot} {format}");
-            // REST: an array of poses, each in the format.
+            // REST: the format's own field (`poses`, `matrices` or
+            // `positions`), an array of poses in the format.
             let body = json!({"configurations": configs, "pose_format": format});
             let r = app
                 .post(&format!("/v1/robots/{robot}/fk/batch"), &body)
                 .await;
             assert_eq!(r.status(), 200, "{what}");
             let v: Value = r.json().await.unwrap();
-            let rest: Vec<Vec<f64>> = v["poses"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|p| json_numbers(p, format))
-                .collect();
+            assert_only_fields_of(&v, format);
+            let rest = json_list(&v[format_fields(format).2], format);
             // gRPC: Pose messages (full) or one packed field.
             let req = pb::ForwardKinematicsBatchRequest {
                 robot: robot.into(),
@@ -206,7 +203,8 @@ async fn the_default_and_full_are_todays_answer_and_jacobian_replies_follow_the_
     .await
     .unwrap();
     assert_eq!(unspecified, full);
-    // The WebSocket's Jacobian replies carry the pose in the asked format.
+    // The WebSocket's Jacobian replies carry the pose in the asked format's
+    // field; IK replies always carry the full `pose`.
     let mut ws = open_ws(&app, "planar_2dof").await;
     let msg = json!({"id": 1, "joints": q, "jacobian": true, "pose_format": "position"});
     ws.send(Message::Text(msg.to_string().into()))
@@ -214,7 +212,22 @@ async fn the_default_and_full_are_todays_answer_and_jacobian_replies_follow_the_
         .unwrap();
     let reply = next_text(&mut ws).await.unwrap();
     assert!(reply["jacobian"].is_array(), "{reply}");
-    assert_eq!(reply["pose"], json!(position(&plain["pose"])), "{reply}");
+    assert_eq!(
+        reply["position"],
+        json!(position(&plain["pose"])),
+        "{reply}"
+    );
+    assert_only_fields_of(&reply, "position");
+    let target = json!({"position": position(&plain["pose"])});
+    let msg =
+        json!({"id": 2, "ik": {"target": target, "position_only": true}, "pose_format": "matrix"});
+    ws.send(Message::Text(msg.to_string().into()))
+        .await
+        .unwrap();
+    let reply = next_text(&mut ws).await.unwrap();
+    assert_eq!(reply["converged"], true, "{reply}");
+    assert!(reply["pose"]["quaternion"].is_object(), "{reply}");
+    assert_only_fields_of(&reply, "full");
 }
 
 /// Whether two JSON documents are equal, numbers to 1e-12 (the batch may take
@@ -236,13 +249,21 @@ fn json_close(a: &Value, b: &Value) -> bool {
     }
 }
 
-/// Every `<!-- pose format example: POST PATH BODY -->` in the README is
-/// followed by a ```json block with the server's answer (numbers to 1e-12).
+/// Every `<!-- pose format example: POST PATH BODY -->` in the README and
+/// the migration note is followed by a ```json block with the server's
+/// answer (numbers to 1e-12).
 #[tokio::test]
 async fn the_readme_pose_format_examples_are_what_the_server_answers() {
     let app = spawn_app().await;
     let mut seen = 0;
-    for (request, documented) in readme_examples("<!-- pose format example: POST ") {
+    let marker = "<!-- pose format example: POST ";
+    let readme = readme_examples(marker);
+    let migration = migration_examples(marker);
+    assert!(
+        migration.len() >= 3,
+        "the migration note shows single, frames, batch"
+    );
+    for (request, documented) in readme.into_iter().chain(migration) {
         let (path, body) = request.split_once(' ').unwrap();
         let body: Value = serde_json::from_str(body).expect("body is JSON");
         let r = app.post(path, &body).await;
@@ -254,11 +275,31 @@ async fn the_readme_pose_format_examples_are_what_the_server_answers() {
         );
         seen += 1;
     }
-    assert!(seen >= 1, "the README shows a pose format example");
+    assert!(seen >= 5, "the README shows pose format examples");
+}
+
+/// Every `oneOf`/`anyOf` under `v`, with where it is.
+fn unions<'a>(v: &'a Value, at: &str, out: &mut Vec<(String, &'a Value)>) {
+    match v {
+        Value::Object(m) => {
+            for (k, x) in m {
+                if k == "oneOf" || k == "anyOf" {
+                    out.push((at.to_string(), x));
+                }
+                unions(x, &format!("{at}/{k}"), out);
+            }
+        }
+        Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                unions(x, &format!("{at}/{i}"), out);
+            }
+        }
+        _ => {}
+    }
 }
 
 #[tokio::test]
-async fn the_openapi_document_describes_the_formats() {
+async fn the_openapi_document_gives_each_pose_field_one_type() {
     let app = spawn_app().await;
     let doc: Value = app.get("/openapi.json").await.json().await.unwrap();
     let schemas = &doc["components"]["schemas"];
@@ -270,8 +311,75 @@ async fn the_openapi_document_describes_the_formats() {
         let p = &schemas[request]["properties"]["pose_format"];
         assert!(!p.is_null(), "{request}: pose_format documented");
     }
-    let union = &schemas["PoseValue"]["oneOf"];
-    assert_eq!(union.as_array().map(Vec::len), Some(3), "{union}");
+    assert!(schemas.get("PoseValue").is_none(), "no union of poses");
+    assert_eq!(schemas["PoseMatrix"]["type"], "array");
     assert_eq!(schemas["PoseMatrix"]["minItems"], 12);
+    assert_eq!(schemas["PoseMatrix"]["maxItems"], 12);
+    assert_eq!(schemas["PosePosition"]["minItems"], 3);
     assert_eq!(schemas["PosePosition"]["maxItems"], 3);
+    let r = |name: &str| json!(format!("#/components/schemas/{name}"));
+    assert_eq!(schemas["PoseMatrices"]["items"]["$ref"], r("PoseMatrix"));
+    assert_eq!(schemas["PosePositions"]["items"]["$ref"], r("PosePosition"));
+    // Each answer field: its own type, optional, and saying when it is there.
+    let single = [
+        ("pose", "Pose"),
+        ("matrix", "PoseMatrix"),
+        ("position", "PosePosition"),
+        ("frame_matrices", "PoseMatrices"),
+        ("frame_positions", "PosePositions"),
+    ];
+    let batch = [("matrices", "PoseMatrices"), ("positions", "PosePositions")];
+    let ws_props = schemas["WsReply"]["allOf"]
+        .as_array()
+        .and_then(|parts| parts.iter().find(|p| p["properties"].is_object()))
+        .expect("WsReply has its own properties");
+    let answers = [
+        ("FkOutput", &schemas["FkOutput"], &single[..], "frames"),
+        ("WsReply", ws_props, &single[..], "frames"),
+        (
+            "FkBatchResponse",
+            &schemas["FkBatchResponse"],
+            &batch[..],
+            "poses",
+        ),
+    ];
+    for (name, schema, typed, full_list) in answers {
+        let props = &schema["properties"];
+        let required = schema["required"].as_array().cloned().unwrap_or_default();
+        for (field, ty) in typed {
+            assert_eq!(
+                props[field]["$ref"],
+                r(ty),
+                "{name}.{field}: {}",
+                props[field]
+            );
+        }
+        assert_eq!(props[full_list]["type"], "array", "{name}.{full_list}");
+        assert_eq!(
+            props[full_list]["items"]["$ref"],
+            r("Pose"),
+            "{name}.{full_list}"
+        );
+        for (field, _) in typed.iter().chain([&(full_list, "")]) {
+            assert!(
+                !required.contains(&json!(field)),
+                "{name}.{field} is optional"
+            );
+            let text = props[field]["description"].as_str().unwrap_or_default();
+            assert!(text.contains("pose_format"), "{name}.{field}: {text}");
+        }
+    }
+    for (name, must) in [
+        ("FkOutput", &["robot", "length_unit"][..]),
+        ("FkBatchResponse", &["robot", "length_unit"][..]),
+    ] {
+        let required = &schemas[name]["required"];
+        assert_eq!(required, &json!(must), "{name}: required fields");
+    }
+    let mut found = Vec::new();
+    unions(&doc, "#", &mut found);
+    for (at, union) in found {
+        let text = union.to_string();
+        assert!(!text.contains("/Pose"), "a union of poses at {at}: {text}");
+    }
 }

@@ -1,6 +1,8 @@
 //! Compact pose formats (`pose_format`) over every front door: one FK call
 //! answered as plain numbers per pose, whatever the door and the format, so
 //! that compact answers can be compared with full ones number for number.
+//! Over REST and the WebSocket each format has its own fields ([`format_fields`]):
+//! the answer must carry those of its format and none of the others'.
 
 use futures_util::SinkExt;
 use kinserve::api::grpc::pb;
@@ -75,6 +77,27 @@ pub(crate) struct Numbers {
     pub(crate) frames: Option<Vec<Vec<f64>>>,
 }
 
+/// The JSON fields of a format: (single pose, frames, batch poses).
+pub(crate) fn format_fields(format: &str) -> (&'static str, &'static str, &'static str) {
+    match format {
+        "full" => ("pose", "frames", "poses"),
+        "matrix" => ("matrix", "frame_matrices", "matrices"),
+        "position" => ("position", "frame_positions", "positions"),
+        other => panic!("no format {other}"),
+    }
+}
+
+/// Asserts that `v` has none of the pose fields of the formats other than
+/// `format`.
+pub(crate) fn assert_only_fields_of(v: &Value, format: &str) {
+    for other in FORMATS.into_iter().filter(|f| *f != format) {
+        let (a, b, c) = format_fields(other);
+        for name in [a, b, c] {
+            assert!(v.get(name).is_none(), "{format}: no `{name}` field: {v}");
+        }
+    }
+}
+
 /// A JSON pose as numbers: an object's matrix (`full`) or the array itself.
 pub(crate) fn json_numbers(pose: &Value, format: &str) -> Vec<f64> {
     if format == "full" {
@@ -86,16 +109,24 @@ pub(crate) fn json_numbers(pose: &Value, format: &str) -> Vec<f64> {
     a.iter().map(|x| x.as_f64().expect("a number")).collect()
 }
 
+/// A JSON list of poses as numbers.
+pub(crate) fn json_list(poses: &Value, format: &str) -> Vec<Vec<f64>> {
+    poses
+        .as_array()
+        .expect("an array of poses")
+        .iter()
+        .map(|p| json_numbers(p, format))
+        .collect()
+}
+
+/// An FK answer (REST or WebSocket) as numbers, read from the fields of
+/// `format` (and only there).
 fn json_answer(v: &Value, format: &str) -> Numbers {
+    assert_only_fields_of(v, format);
+    let (pose, frames, _) = format_fields(format);
     Numbers {
-        pose: json_numbers(&v["pose"], format),
-        frames: v.get("frames").map(|f| {
-            f.as_array()
-                .expect("frames array")
-                .iter()
-                .map(|p| json_numbers(p, format))
-                .collect()
-        }),
+        pose: json_numbers(&v[pose], format),
+        frames: v.get(frames).map(|f| json_list(f, format)),
     }
 }
 

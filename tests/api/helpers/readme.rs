@@ -1,16 +1,30 @@
-//! The README's checked examples: a `<!-- … example: REQUEST -->` marker
-//! followed by a ```json block with the answer the server gives.
+//! The README's (and the migration note's) checked examples: a
+//! `<!-- … example: REQUEST -->` marker followed by a ```json block with the
+//! answer the server gives.
 
 use serde_json::Value;
 
 /// The README, as built into the test binary.
 const README: &str = include_str!("../../../README.md");
 
-/// Every example after `marker` (e.g. `"<!-- error example: "`): the request
-/// text up to ` -->`, and the first ```json block after it, parsed.
+/// docs/MIGRATION.md, as built into the test binary.
+const MIGRATION: &str = include_str!("../../../docs/MIGRATION.md");
+
+/// Every example after `marker` (e.g. `"<!-- error example: "`) in the
+/// README: the request text up to ` -->`, and the first ```json block after
+/// it, parsed.
 pub(crate) fn readme_examples(marker: &str) -> Vec<(&'static str, Value)> {
-    README
-        .split(marker)
+    examples_in(README, marker)
+}
+
+/// Every example after `marker` in docs/MIGRATION.md (the new shapes), as
+/// [`readme_examples`].
+pub(crate) fn migration_examples(marker: &str) -> Vec<(&'static str, Value)> {
+    examples_in(MIGRATION, marker)
+}
+
+fn examples_in(text: &'static str, marker: &str) -> Vec<(&'static str, Value)> {
+    text.split(marker)
         .skip(1)
         .map(|part| {
             let (request, rest) = part.split_once(" -->").expect("example marker closes");
