@@ -12,3 +12,4 @@ mod model;
 mod properties;
 mod published_poses;
 mod readme;
+mod service_limits;
