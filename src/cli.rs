@@ -293,7 +293,7 @@ fn ik(args: &IkArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let answer = request.solve(Some(std::time::Instant::now() + args.time_limit));
+    let answer = request.solve(std::time::Instant::now().checked_add(args.time_limit));
     let out = IkOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),

@@ -25,6 +25,12 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Run the server (REST + gRPC).
+    #[command(
+        after_help = "Durations: 250ms, 10s, 2m, 1h or plain seconds, at most 24h \
+        (--ik-time-limit at most 60s). Counts at most 1000000; --max-joints and \
+        --max-links at most 4096; body sizes at most 1 GiB; buffered byte budgets \
+        at most 64 GiB. Out-of-range values stop start-up."
+    )]
     Serve(Box<ServeConfig>),
     /// Check robot files; prints every error with its field; exits 1 on any.
     Validate {
@@ -183,8 +189,8 @@ pub struct IkArgs {
     /// Restarts after a stalled attempt (default 100).
     #[arg(long)]
     pub restarts: Option<u32>,
-    /// Give up after this long, answering the best attempt.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    /// Give up after this long, answering the best attempt (at most 60 s).
+    #[arg(long, default_value = "1s", value_parser = parse_ik_time_limit)]
     pub time_limit: Duration,
 }
 
@@ -251,7 +257,36 @@ fn parse_batch(s: &str) -> Result<usize, String> {
     }
 }
 
-pub use kinserve_api::parse_duration;
+pub use kinserve_api::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
+
+/// Most of anything counted by a `serve` option (configurations, robots,
+/// requests, connections, streams, batches): one million.
+pub const MAX_COUNT: u64 = 1_000_000;
+
+/// Most joints (`--max-joints`) and DH rows (`--max-links`) a model may be allowed.
+pub const MAX_MODEL_SIZE: u64 = 4096;
+
+/// Largest request body or message (`--max-body-bytes`, `--max-batch-body-bytes`): 1 GiB.
+pub const MAX_BODY_BYTES: u64 = 1 << 30;
+
+/// Largest buffered byte budget (`--max-buffered-request-bytes`,
+/// `--max-buffered-response-bytes`): 64 GiB.
+pub const MAX_BUFFERED_BYTES: u64 = 64 << 30;
+
+/// A whole number from 0 to `MAX` (a count or a byte size).
+fn parse_at_most<const MAX: u64>(s: &str) -> Result<usize, String> {
+    let too_large = || format!("too large: at most {MAX}");
+    let n: u64 = s
+        .parse()
+        .map_err(|e: std::num::ParseIntError| match e.kind() {
+            std::num::IntErrorKind::PosOverflow => too_large(),
+            _ => e.to_string(),
+        })?;
+    if n > MAX {
+        return Err(too_large());
+    }
+    usize::try_from(n).map_err(|_| too_large())
+}
 
 /// Configuration of `kinserve serve`. Its `Debug` output never shows the API
 /// token (only whether one is set), so the configuration can be logged.
@@ -301,25 +336,25 @@ pub struct ServeConfig {
     #[arg(long, env = "KINSERVE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Human)]
     pub log_format: LogFormat,
     /// Most configurations in one batch request.
-    #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000)]
+    #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_batch: usize,
     /// Most registered robots (built-ins not counted); registering one more is 507.
-    #[arg(long, env = "KINSERVE_MAX_ROBOTS", default_value_t = 1000)]
+    #[arg(long, env = "KINSERVE_MAX_ROBOTS", default_value_t = 1000, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_robots: usize,
     /// Most movable joints in a model.
-    #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS)]
+    #[arg(long, env = "KINSERVE_MAX_JOINTS", default_value_t = ModelLimits::DEFAULT_MAX_JOINTS, value_parser = parse_at_most::<MAX_MODEL_SIZE>)]
     pub max_joints: usize,
     /// Most DH rows (movable and fixed) in a model.
-    #[arg(long, env = "KINSERVE_MAX_LINKS", default_value_t = ModelLimits::DEFAULT_MAX_LINKS)]
+    #[arg(long, env = "KINSERVE_MAX_LINKS", default_value_t = ModelLimits::DEFAULT_MAX_LINKS, value_parser = parse_at_most::<MAX_MODEL_SIZE>)]
     pub max_links: usize,
     /// Largest request body in bytes (all routes but batch).
-    #[arg(long, env = "KINSERVE_MAX_BODY_BYTES", default_value_t = 1 << 20)]
+    #[arg(long, env = "KINSERVE_MAX_BODY_BYTES", default_value_t = 1 << 20, value_parser = parse_at_most::<MAX_BODY_BYTES>)]
     pub max_body_bytes: usize,
     /// Largest batch request body (REST) or message (gRPC) in bytes.
-    #[arg(long, env = "KINSERVE_MAX_BATCH_BODY_BYTES", default_value_t = 16 << 20)]
+    #[arg(long, env = "KINSERVE_MAX_BATCH_BODY_BYTES", default_value_t = 16 << 20, value_parser = parse_at_most::<MAX_BODY_BYTES>)]
     pub max_batch_body_bytes: usize,
     /// Most requests in flight at once; more are answered 503 / RESOURCE_EXHAUSTED at once.
-    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_REQUESTS", default_value_t = 1024)]
+    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_REQUESTS", default_value_t = 1024, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_concurrent_requests: usize,
     /// Longest time a request may take.
     #[arg(long, env = "KINSERVE_REQUEST_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
@@ -338,28 +373,29 @@ pub struct ServeConfig {
     /// Most connections open at once, both listeners together; with every
     /// slot taken nothing more is accepted (new clients wait in the kernel's
     /// backlog) until one closes. Each idle connection costs about 10–20 KiB.
-    #[arg(long, env = "KINSERVE_MAX_CONNECTIONS", default_value_t = 4096)]
+    #[arg(long, env = "KINSERVE_MAX_CONNECTIONS", default_value_t = 4096, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_connections: usize,
     /// Most streams open at once (WebSockets and gRPC StreamForwardKinematics
     /// calls together); streams never take request permits. More are refused
     /// at once: 503 before the WebSocket upgrade, RESOURCE_EXHAUSTED on gRPC.
     /// A WebSocket may hold up to about 2.5 × --max-body-bytes while a client
     /// sends a fragmented message: 64 × 2.5 MiB keeps the worst case near 160 MiB.
-    #[arg(long, env = "KINSERVE_MAX_STREAMS", default_value_t = 64)]
+    #[arg(long, env = "KINSERVE_MAX_STREAMS", default_value_t = 64, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_streams: usize,
     /// Most streams open at once on one connection (an HTTP/1 connection
     /// carries one WebSocket; HTTP/2 ones many).
     #[arg(
         long,
         env = "KINSERVE_MAX_STREAMS_PER_CONNECTION",
-        default_value_t = 16
+        default_value_t = 16,
+        value_parser = parse_at_most::<MAX_COUNT>
     )]
     pub max_streams_per_connection: usize,
     /// Most bytes of request bodies buffered at once, REST bodies and gRPC
     /// messages together (one budget): a REST body that does not fit is
     /// answered 503 (Retry-After); a gRPC call that needs more fails at once
     /// with RESOURCE_EXHAUSTED (each gRPC call's first 64 KiB are not counted).
-    #[arg(long, env = "KINSERVE_MAX_BUFFERED_REQUEST_BYTES", default_value_t = 64 << 20)]
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_REQUEST_BYTES", default_value_t = 64 << 20, value_parser = parse_at_most::<MAX_BUFFERED_BYTES>)]
     pub max_buffered_request_bytes: usize,
     /// Longest wait for the next piece of a request body; past it the request
     /// is answered 408 and the connection closed. (The whole body must also
@@ -377,12 +413,12 @@ pub struct ServeConfig {
     pub linger_timeout: Duration,
     /// Most bytes of REST answers (of 64 KiB or more each) waiting to be sent
     /// at once; an answer that does not fit is replaced by 503 (Retry-After).
-    #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20)]
+    #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20, value_parser = parse_at_most::<MAX_BUFFERED_BYTES>)]
     pub max_buffered_response_bytes: usize,
     /// Most batch requests (REST `…/batch`) computed at once; more wait their
     /// turn within the request timeout. 0: one less than the number of CPUs
     /// (at least 1), so that a core is left for everything else.
-    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0)]
+    #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_concurrent_batches: usize,
     /// On shutdown, how long `/readyz` (and gRPC health) answer not-ready while
     /// requests are still served as usual, so that load balancers stop sending
@@ -395,7 +431,7 @@ pub struct ServeConfig {
     pub shutdown_timeout: Duration,
     /// Longest time one IK solve may take; past it the best attempt is
     /// answered (not converged). An IK batch may take half the request timeout.
-    #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_duration)]
+    #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_ik_time_limit)]
     pub ik_time_limit: Duration,
 }
 
@@ -474,58 +510,45 @@ impl std::fmt::Debug for ServeConfig {
     }
 }
 
+/// `ServeConfig` as a whole command line, to parse it on its own.
+#[derive(Parser)]
+struct ServeOnly {
+    #[command(flatten)]
+    c: ServeConfig,
+}
+
 impl Default for ServeConfig {
     fn default() -> Self {
-        #[derive(Parser)]
-        struct Wrap {
-            #[command(flatten)]
-            c: ServeConfig,
-        }
         // As if `kinserve serve` ran with no flags: the flag defaults, overridden by any
         // KINSERVE_* environment variables that are set.
-        Wrap::parse_from(["kinserve"]).c
+        ServeOnly::parse_from(["kinserve"]).c
     }
 }
 
 impl ServeConfig {
-    /// A configuration for tests: both listeners on 127.0.0.1 port 0, data in `data_dir`,
-    /// the embedded built-in robots only, no env influence.
+    /// The flag defaults alone, whatever KINSERVE_* variables are set.
+    pub fn flag_defaults() -> ServeConfig {
+        use clap::{CommandFactory, FromArgMatches};
+        let matches = ServeOnly::command()
+            .mut_args(|a| a.env(None))
+            .get_matches_from(["kinserve"]);
+        match ServeOnly::from_arg_matches(&matches) {
+            Ok(only) => only.c,
+            Err(e) => e.exit(),
+        }
+    }
+
+    /// A configuration for tests: [`ServeConfig::flag_defaults`] with both
+    /// listeners on 127.0.0.1 port 0, data in `data_dir`, no shutdown grace
+    /// (stopping a test server is instant), no env influence.
     pub fn for_tests(data_dir: PathBuf) -> ServeConfig {
+        let local = SocketAddr::from(([127, 0, 0, 1], 0));
         ServeConfig {
-            http_addr: "127.0.0.1:0".parse().expect("valid literal"),
-            grpc_addr: "127.0.0.1:0".parse().expect("valid literal"),
-            robots_dir: None,
+            http_addr: local,
+            grpc_addr: local,
             data_dir,
-            database_url: None,
-            database_password_file: None,
-            database_resync_interval: Duration::from_secs(30),
-            api_token: None,
-            cors_origins: Vec::new(),
-            log_format: LogFormat::Human,
-            access_log: true,
-            max_batch: 10_000,
-            max_robots: 1000,
-            max_joints: ModelLimits::DEFAULT_MAX_JOINTS,
-            max_links: ModelLimits::DEFAULT_MAX_LINKS,
-            max_body_bytes: 1 << 20,
-            max_batch_body_bytes: 16 << 20,
-            max_concurrent_requests: 1024,
-            request_timeout: Duration::from_secs(30),
-            header_timeout: Duration::from_secs(10),
-            body_timeout: Duration::from_secs(10),
-            write_timeout: Duration::from_secs(30),
-            linger_timeout: Duration::from_secs(30),
-            max_buffered_request_bytes: 64 << 20,
-            max_buffered_response_bytes: 64 << 20,
-            max_concurrent_batches: 0,
-            stream_idle_timeout: Duration::from_secs(300),
-            max_connections: 4096,
-            max_streams: 64,
-            max_streams_per_connection: 16,
-            // No grace by default in tests: stopping a test server is instant.
             shutdown_grace: Duration::ZERO,
-            shutdown_timeout: Duration::from_secs(10),
-            ik_time_limit: crate::service::ServiceLimits::DEFAULT_IK_TIME_LIMIT,
+            ..ServeConfig::flag_defaults()
         }
     }
 
@@ -599,5 +622,159 @@ mod tests {
         assert!(!shown.contains("db-pa55word"), "{shown}");
         assert!(!shown.contains("db.internal"), "{shown}");
         assert!(shown.contains("<redacted>"), "{shown}");
+    }
+
+    #[test]
+    fn durations_parse_with_and_without_units() {
+        let ok = |s: &str| parse_duration(s).unwrap();
+        assert_eq!(ok("250ms"), Duration::from_millis(250));
+        assert_eq!(ok("10s"), Duration::from_secs(10));
+        assert_eq!(ok("1.5"), Duration::from_millis(1500));
+        assert_eq!(ok("2m"), Duration::from_secs(120));
+        assert_eq!(ok("2min"), Duration::from_secs(120));
+        assert_eq!(ok("1e3s"), Duration::from_secs(1000));
+        assert_eq!(ok("1e3"), Duration::from_secs(1000));
+        assert_eq!(ok("24h"), MAX_DURATION);
+        assert_eq!(ok("0"), Duration::ZERO);
+        for bad in [
+            "",
+            "s",
+            "-1s",
+            "abc",
+            "inf",
+            "NaN",
+            "1e",
+            "5 parsecs",
+            "1ks",
+        ] {
+            assert!(parse_duration(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn durations_past_the_maximum_are_refused_not_panicked_on() {
+        let huge = format!("{}s", "9".repeat(40));
+        for s in [
+            "1e30s",
+            "24.001h",
+            "86401",
+            "1e300h",
+            "1e308",
+            huge.as_str(),
+        ] {
+            assert_eq!(
+                parse_duration(s),
+                Err("too long: at most 24h".to_string()),
+                "{s}"
+            );
+        }
+        assert_eq!(parse_ik_time_limit("60s"), Ok(MAX_IK_TIME_LIMIT));
+        assert_eq!(
+            parse_ik_time_limit("61s"),
+            Err("too long: at most 60s".to_string())
+        );
+        assert_eq!(
+            parse_ik_time_limit("1e18s"),
+            Err("too long: at most 60s".to_string())
+        );
+    }
+
+    #[test]
+    fn counts_and_sizes_past_their_maximum_are_refused() {
+        assert_eq!(parse_at_most::<MAX_COUNT>("1000000"), Ok(1_000_000));
+        assert_eq!(parse_at_most::<MAX_COUNT>("0"), Ok(0));
+        for s in ["1000001", "18446744073709551615", "99999999999999999999999"] {
+            assert_eq!(
+                parse_at_most::<MAX_COUNT>(s),
+                Err("too large: at most 1000000".to_string()),
+                "{s}"
+            );
+        }
+        assert!(parse_at_most::<MAX_COUNT>("-1").is_err());
+        assert!(parse_at_most::<MAX_COUNT>("ten").is_err());
+        assert_eq!(parse_at_most::<MAX_BODY_BYTES>("1073741824"), Ok(1 << 30));
+        assert!(parse_at_most::<MAX_BODY_BYTES>("1073741825").is_err());
+    }
+
+    /// Every duration and limit option of `serve` is range-checked: a value
+    /// past its maximum is a clap error naming the option.
+    #[test]
+    fn serve_refuses_out_of_range_options_by_name() {
+        let cases = [
+            ("--request-timeout", "1e30s", "at most 24h"),
+            ("--header-timeout", "25h", "at most 24h"),
+            ("--body-timeout", "1e30s", "at most 24h"),
+            ("--write-timeout", "1e30s", "at most 24h"),
+            ("--linger-timeout", "1e30s", "at most 24h"),
+            ("--stream-idle-timeout", "1e30s", "at most 24h"),
+            ("--shutdown-grace", "1e30s", "at most 24h"),
+            ("--shutdown-timeout", "1e30s", "at most 24h"),
+            ("--database-resync-interval", "1e30s", "at most 24h"),
+            ("--ik-time-limit", "1e18s", "at most 60s"),
+            ("--max-batch", "1000001", "at most 1000000"),
+            ("--max-robots", "1000001", "at most 1000000"),
+            ("--max-joints", "4097", "at most 4096"),
+            ("--max-links", "4097", "at most 4096"),
+            ("--max-body-bytes", "1073741825", "at most 1073741824"),
+            ("--max-batch-body-bytes", "1073741825", "at most 1073741824"),
+            (
+                "--max-concurrent-requests",
+                "18446744073709551615",
+                "at most 1000000",
+            ),
+            (
+                "--max-connections",
+                "18446744073709551615",
+                "at most 1000000",
+            ),
+            ("--max-streams", "1000001", "at most 1000000"),
+            ("--max-streams-per-connection", "1000001", "at most 1000000"),
+            (
+                "--max-buffered-request-bytes",
+                "18446744073709551615",
+                "at most 68719476736",
+            ),
+            (
+                "--max-buffered-response-bytes",
+                "18446744073709551615",
+                "at most 68719476736",
+            ),
+            ("--max-concurrent-batches", "1000001", "at most 1000000"),
+        ];
+        for (flag, value, why) in cases {
+            let err = ServeOnly::try_parse_from(["kinserve", flag, value])
+                .map(|_| ())
+                .expect_err(flag)
+                .to_string();
+            assert!(
+                err.contains(&format!("invalid value '{value}' for '{flag} ")),
+                "{err}"
+            );
+            assert!(err.contains(why), "{err}");
+        }
+    }
+
+    #[test]
+    fn test_configuration_is_the_flag_defaults_but_for_listeners_data_and_grace() {
+        let t = ServeConfig::for_tests("somewhere".into());
+        let d = ServeConfig::flag_defaults();
+        assert_eq!(t.http_addr, "127.0.0.1:0".parse().unwrap());
+        assert_eq!(t.grpc_addr, t.http_addr);
+        assert_eq!(t.data_dir, PathBuf::from("somewhere"));
+        assert_eq!(t.shutdown_grace, Duration::ZERO);
+        assert_eq!(d.shutdown_grace, Duration::from_secs(5));
+        let same = |c: &ServeConfig| {
+            let c = ServeConfig {
+                http_addr: d.http_addr,
+                grpc_addr: d.grpc_addr,
+                data_dir: d.data_dir.clone(),
+                shutdown_grace: d.shutdown_grace,
+                ..c.clone()
+            };
+            format!("{c:?}")
+        };
+        assert_eq!(same(&t), format!("{d:?}"));
+        // The flag defaults are the service's and the model's defaults.
+        assert_eq!(d.service_limits(), ServiceLimits::default());
     }
 }

@@ -226,7 +226,7 @@ impl Service {
             .iter()
             .map(|e| e.robot.name().to_string())
             .filter_map(|n| {
-                let d = edit_distance(&wanted, &normalise(&n));
+                let d = strsim::levenshtein(&wanted, &normalise(&n));
                 (d <= budget).then_some((d, n))
             })
             .collect();
@@ -400,7 +400,8 @@ impl Service {
     /// [`Error::IkNotConverged`] carrying the best attempt.
     pub fn ik(&self, robot: &Robot, spec: &IkSpec) -> Result<IkAnswer> {
         let request = robot.check_ik(spec)?;
-        let answer = request.solve(Some(Instant::now() + self.limits.ik_time_limit));
+        // A limit too long to represent (set in code; the command line caps it) is no limit.
+        let answer = request.solve(Instant::now().checked_add(self.limits.ik_time_limit));
         metrics::counter!("kinserve_ik_solves_total", "converged" => if answer.converged { "true" } else { "false" }).increment(1);
         if answer.converged {
             Ok(answer)
@@ -418,8 +419,14 @@ impl Service {
         self.check_batch_size(spec.targets.len())
             .map_err(|_| self.targets_too_large(spec.targets.len()))?;
         let batch = robot.check_ik_batch(spec)?;
-        let deadline = Instant::now() + self.limits.ik_batch_time_limit;
-        let answers = batch.solve(self.limits.ik_time_limit, deadline);
+        let now = Instant::now();
+        let deadline = deadline_after(now, self.limits.ik_batch_time_limit);
+        // No target gets more than the whole batch has (so no sum overflows either).
+        let per_target = self
+            .limits
+            .ik_time_limit
+            .min(deadline.saturating_duration_since(now));
+        let answers = batch.solve(per_target, deadline);
         let converged = answers.iter().filter(|a| a.converged).count() as u64;
         metrics::counter!("kinserve_ik_solves_total", "converged" => "true").increment(converged);
         metrics::counter!("kinserve_ik_solves_total", "converged" => "false")
@@ -572,18 +579,10 @@ fn normalise(name: &str) -> String {
         .collect()
 }
 
-/// Levenshtein distance between two short strings (characters).
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diag = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let up = row[j + 1];
-            row[j + 1] = (up + 1).min(row[j] + 1).min(diag + usize::from(ca != *cb));
-            diag = up;
-        }
-    }
-    row[b.len()]
+/// `now + limit`; a limit too long to represent (only possible when set in
+/// code: the command line caps durations at a day) counts as a day.
+fn deadline_after(now: Instant, limit: Duration) -> Instant {
+    now.checked_add(limit)
+        .or_else(|| now.checked_add(Duration::from_secs(24 * 60 * 60)))
+        .unwrap_or(now)
 }

@@ -313,3 +313,61 @@ fn ik_reaches_an_fk_pose_and_an_unreachable_target_exits_1_with_the_best_attempt
     let (ok, _, err) = run_json(&["ik", "--robot", "ur5e", "--position", "0.3,0,0.2"]);
     assert!(!ok && err.contains("target.quaternion"), "{err}");
 }
+
+/// Out-of-range durations and limits stop `serve` at start-up with a clap
+/// error naming the option (exit 2), whether given as a flag or in the
+/// environment, and `ik --time-limit` likewise: no panic, no server.
+#[test]
+fn serve_refuses_out_of_range_durations_and_limits_by_name() {
+    let refused = |c: &mut std::process::Command, flag: &str, value: &str, why: &str| {
+        let out = c.output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(
+            err.contains(&format!("invalid value '{value}' for '{flag} ")),
+            "{err}"
+        );
+        assert!(err.contains(why), "{err}");
+    };
+    for (flag, value, why) in [
+        ("--request-timeout", "1e30s", "at most 24h"),
+        ("--ik-time-limit", "10000000000000000000s", "at most 60s"),
+        (
+            "--max-concurrent-requests",
+            "18446744073709551615",
+            "at most 1000000",
+        ),
+        ("--max-connections", "1000001", "at most 1000000"),
+    ] {
+        refused(
+            kinserve().args(["serve", "--data-dir", "/nonexistent", flag, value]),
+            flag,
+            value,
+            why,
+        );
+    }
+    refused(
+        kinserve()
+            .args(["serve", "--data-dir", "/nonexistent"])
+            .env("KINSERVE_WRITE_TIMEOUT", "1e30s"),
+        "--write-timeout",
+        "1e30s",
+        "at most 24h",
+    );
+    refused(
+        kinserve().args([
+            "ik",
+            "--robot",
+            "planar_2dof",
+            "--position",
+            "0.3,0.4,0",
+            "--position-only",
+            "--time-limit",
+            "2m",
+        ]),
+        "--time-limit",
+        "2m",
+        "at most 60s",
+    );
+}

@@ -8,3 +8,4 @@ mod cli;
 mod fuzz_corpus;
 mod helpers;
 mod readme;
+mod service_limits;

@@ -38,7 +38,7 @@ mod pose;
 mod robot;
 mod stream;
 
-pub use duration::parse_duration;
+pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_spec_from_pb};

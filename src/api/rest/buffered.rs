@@ -16,8 +16,9 @@
 //! [`super::conn`]), so a client that takes nothing is found out even on
 //! HTTP/2, where flow control stops a stream without any write blocking.
 //! A large FK batch answer is produced a frame at a time (see
-//! [`super::streamed`]) and counts what its [`super::streamed::Holds`]
-//! extension says (its poses and what may be in flight), not its JSON size.
+//! [`super::streamed`]) and counts what its [`Holds`] extension says (its
+//! poses and what may be in flight), not its JSON size. This module does not
+//! depend on [`super::streamed`] (which depends on it).
 
 use std::pin::Pin;
 use std::sync::Arc;
@@ -44,6 +45,12 @@ pub const UNCOUNTED_BYTES: usize = 64 << 10;
 
 /// Largest frame a counted answer is handed to the connection in.
 pub const FRAME_BYTES: usize = 64 << 10;
+
+/// The memory a streamed answer keeps until its last frame is taken, in
+/// bytes: a response extension (set by [`super::streamed`]) that
+/// [`hold_response`] counts instead of the body's size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Holds(pub usize);
 
 /// Whether the body of `req` is read ahead: it has one (not an upgrade or
 /// CONNECT, whose "body" is the stream that follows).
@@ -178,7 +185,7 @@ pub fn hold_response(
     state: &AppState,
     conn: Option<Arc<ConnActivity>>,
 ) -> Response {
-    let size = match resp.extensions().get::<super::streamed::Holds>() {
+    let size = match resp.extensions().get::<Holds>() {
         Some(holds) => holds.0,
         None => {
             let hint = resp.body().size_hint();

@@ -6,13 +6,15 @@
 //! connection asks for the next frame. A client that reads nothing therefore
 //! holds the computed poses and one frame (plus what hyper and the kernel
 //! buffer), not a multi-megabyte JSON text; the bytes it holds are counted
-//! against the response byte budget through [`Holds`]. The answer goes out
+//! against the response byte budget through [`Holds`] (the extension
+//! [`super::buffered`] reads, defined there). The answer goes out
 //! without `Content-Length` (HTTP/1.1 chunked, or HTTP/2 DATA frames), and
 //! its bytes are exactly what serialising the whole [`FkBatchResponse`] gives.
 //!
 //! Owns the JSON answer bodies of the REST handlers (whole, or streamed for
 //! large batches); which answers stream is decided here by size. Depends on
-//! the DTOs and [`crate::api::pose_format`], nothing above the adapter.
+//! the DTOs, [`super::buffered`] (frame size, [`Holds`]) and
+//! [`crate::api::pose_format`], nothing above the adapter.
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -22,6 +24,7 @@ use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use http_body::{Frame, SizeHint};
 
+use super::buffered::Holds;
 use super::dto::FkBatchResponse;
 use crate::api::pose_format::{FormattedPose, PoseFormat};
 use crate::error::Error;
@@ -42,11 +45,6 @@ pub const STREAM_FROM_BYTES: usize = 64 << 10;
 /// bytes: hyper's HTTP/1 write buffer limit (its default `max_buf_size`,
 /// 8 KiB + 100 × 4 KiB) and the frame being handed over.
 const IN_FLIGHT_BYTES: usize = 8192 + 4096 * 100 + FRAME_BYTES;
-
-/// The memory a streamed answer keeps until its last frame is taken, in
-/// bytes: a response extension read by the response byte budget.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Holds(pub usize);
 
 /// A generous estimate of the JSON size of `n` poses in `format`, in bytes
 /// (17 significant digits per number).
