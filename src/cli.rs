@@ -8,7 +8,8 @@ use std::time::Duration;
 
 use crate::api::pose::{FkOutput, Pose};
 use crate::api::rest::LinkTransformsOutput;
-use crate::api::velocity::{IkItem, IkOutput, JacobianItem, JacobianOutput};
+use crate::api::ik::{IkItem, IkOutput};
+use crate::api::jacobian::{JacobianItem, JacobianOutput};
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, FrameArg, IkArgs, JacobianArgs,
     LinkTransformsArgs, ModelArgs, ServeConfig,

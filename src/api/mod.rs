@@ -21,10 +21,11 @@ use crate::error::Error;
 
 pub mod budget;
 pub mod grpc;
+pub mod ik;
+pub mod jacobian;
 pub mod pose;
 pub mod pose_format;
 pub mod rest;
-pub mod velocity;
 
 /// The error a caught panic is answered with, on every front door: logs the
 /// panic's message (`what` says where) and returns [`Error::Internal`], whose

@@ -10,7 +10,7 @@
 use std::time::{Duration, Instant};
 
 use kinserve::api::rest::{Problem, WsRequest};
-use kinserve::api::velocity::IkItem;
+use kinserve::api::ik::IkItem;
 use kinserve::error::Error;
 use kinserve_kinematics::JointKind;
 use kinserve_kinematics::ik::rotation_error;

@@ -509,7 +509,7 @@ impl<'a> WsReply<'a> {
     }
 }
 
-/// The Jacobian part of a WebSocket reply (see [`crate::api::velocity::JacobianItem`]).
+/// The Jacobian part of a WebSocket reply (see [`crate::api::jacobian::JacobianItem`]).
 #[derive(Debug, Serialize, ToSchema)]
 pub struct WsJacobian {
     /// Frame of the rows.
@@ -526,7 +526,7 @@ pub struct WsJacobian {
 
 impl From<&crate::model::JacobianAnswer> for WsJacobian {
     fn from(a: &crate::model::JacobianAnswer) -> Self {
-        let item = crate::api::velocity::JacobianItem::from(a);
+        let item = crate::api::jacobian::JacobianItem::from(a);
         WsJacobian {
             frame: item.frame,
             jacobian: item.jacobian,
@@ -572,7 +572,7 @@ pub struct LinkTransformsOutput {
     pub link_transforms: Vec<LinkTransformItem>,
 }
 
-/// The IK part of a WebSocket reply (see [`crate::api::velocity::IkItem`]).
+/// The IK part of a WebSocket reply (see [`crate::api::ik::IkItem`]).
 #[derive(Debug, Serialize, ToSchema)]
 pub struct WsIk {
     /// Joint values in the request's angle unit.

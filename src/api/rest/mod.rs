@@ -7,13 +7,14 @@ mod dto;
 mod export;
 mod extract;
 mod handlers;
+mod ik;
+mod jacobian;
 mod openapi;
 mod playground;
 pub mod problem;
 mod routes;
 mod streamed;
 mod strict;
-mod velocity;
 mod ws;
 
 use std::sync::Arc;

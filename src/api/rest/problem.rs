@@ -5,7 +5,7 @@ use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::velocity::IkItem;
+use crate::api::ik::IkItem;
 use crate::error::Error;
 
 /// A field-level error inside a problem.

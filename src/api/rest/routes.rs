@@ -18,7 +18,7 @@ use utoipa_axum::router::{OpenApiRouter, UtoipaMethodRouterExt};
 use utoipa_axum::routes;
 
 use super::openapi::Complete;
-use super::{Admission, ApiDoc, AppState, export, handlers, playground, velocity, ws};
+use super::{Admission, ApiDoc, AppState, export, handlers, ik, jacobian, playground, ws};
 
 /// The groups routes are declared in; each group is admitted its own way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,8 +49,8 @@ fn declared(
         ));
     let single = OpenApiRouter::from(extra)
         .routes(routes!(handlers::fk))
-        .routes(routes!(velocity::jacobian))
-        .routes(routes!(velocity::ik))
+        .routes(routes!(jacobian::jacobian))
+        .routes(routes!(ik::ik))
         .routes(routes!(handlers::link_transforms))
         // GET: the HTTP/1.1 upgrade; CONNECT: WebSockets over HTTP/2 (RFC 8441),
         // not an operation of its own (OpenAPI has no CONNECT).
@@ -59,8 +59,8 @@ fn declared(
         .routes(routes!(export::urdf));
     let batch = OpenApiRouter::default()
         .routes(routes!(handlers::fk_batch))
-        .routes(routes!(velocity::jacobian_batch))
-        .routes(routes!(velocity::ik_batch));
+        .routes(routes!(jacobian::jacobian_batch))
+        .routes(routes!(ik::ik_batch));
     let open = OpenApiRouter::default()
         .routes(routes!(handlers::healthz))
         .routes(routes!(handlers::readyz))

@@ -1,12 +1,12 @@
-//! The Jacobian and IK results as REST, WebSocket and the CLI return them
-//! (gRPC has its own messages in `grpc::convert`), built from the model's
-//! answers. Depends on the model and kinematics crates and `api::pose` only.
+//! The Jacobian results as REST, WebSocket and the CLI return them (gRPC's
+//! messages come from `kinserve-api`), built from the model's answers.
+//! Depends on the model crate and `api::pose` only.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::pose::Pose;
-use crate::model::{AngleUnit, IkAnswer, JacobianAnswer, LengthUnit, ReferenceFrame};
+use crate::model::{JacobianAnswer, LengthUnit, ReferenceFrame};
 
 /// The Jacobian of one configuration and what its singular values say.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -77,69 +77,3 @@ pub struct JacobianBatchOutput {
     pub results: Vec<JacobianItem>,
 }
 
-/// One IK answer: the joints found (or the best attempt) and their errors.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!({
-    "joints": [0.04323781905251354, 1.186399552468544], "converged": true,
-    "position_error": 3.261475666182992e-11, "orientation_error": null, "iterations": 7,
-    "pose": {"matrix": [[0.3345794784216446, -0.9423675358473999, 0.0, 0.4999999999746447],
-            [0.9423675358473999, 0.3345794784216446, 0.0, 0.2999999999794858], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-        "position": [0.4999999999746447, 0.2999999999794858, 0.0],
-        "quaternion": {"w": 0.8168780442702707, "x": 0.0, "y": 0.0, "z": 0.5768104201461497}, "rpy": [0.0, 0.0, 1.2296373715210576]}
-}))]
-pub struct IkItem {
-    /// Joint values: revolute in the request's `angle_unit`, prismatic in the
-    /// robot's length unit; always within the joint limits.
-    pub joints: Vec<f64>,
-    /// Whether both errors are within the tolerance (position only: the position error).
-    pub converged: bool,
-    /// Distance from the target position, robot length unit.
-    pub position_error: f64,
-    /// Angle from the target orientation, rad; `null` when the target gave none.
-    pub orientation_error: Option<f64>,
-    /// Solver iterations over all attempts.
-    pub iterations: u32,
-    /// Tool pose at `joints`.
-    pub pose: Pose,
-}
-
-impl From<&IkAnswer> for IkItem {
-    fn from(a: &IkAnswer) -> Self {
-        IkItem {
-            joints: a.joints.clone(),
-            converged: a.converged,
-            position_error: a.position_error,
-            orientation_error: a.orientation_error,
-            iterations: a.iterations,
-            pose: Pose::from(&a.pose),
-        }
-    }
-}
-
-/// `POST /v1/robots/{name}/ik` response and `kinserve ik` output.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct IkOutput {
-    /// Robot name.
-    pub robot: String,
-    /// Length unit of the positions and of `position_error`.
-    pub length_unit: LengthUnit,
-    /// Unit of the revolute values in `joints`.
-    pub angle_unit: AngleUnit,
-    /// The answer.
-    #[serde(flatten)]
-    pub result: IkItem,
-}
-
-/// `POST /v1/robots/{name}/ik/batch` response: every target answered, in
-/// request order, converged or not (see each `converged`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct IkBatchOutput {
-    /// Robot name.
-    pub robot: String,
-    /// Length unit of the positions and of `position_error`.
-    pub length_unit: LengthUnit,
-    /// Unit of the revolute values in `joints`.
-    pub angle_unit: AngleUnit,
-    /// One answer per target, in request order.
-    pub results: Vec<IkItem>,
-}

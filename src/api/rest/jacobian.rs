@@ -1,0 +1,102 @@
+//! REST handlers of the Jacobian: `POST /v1/robots/{name}/jacobian` and
+//! `/jacobian/batch`. Convert → call the service → convert back, like the FK
+//! handlers. Depends on the service, the model and `api::jacobian`.
+
+use axum::Json;
+use axum::extract::State;
+
+use super::AppState;
+use super::dto::{JacobianBatchRequest, JacobianRequest};
+use super::extract::{JsonBody, RobotName};
+use super::problem::{ApiError, Problem};
+use crate::api::jacobian::{JacobianBatchOutput, JacobianItem, JacobianOutput};
+use crate::model::{JacobianBatchSpec, JacobianSpec};
+
+type ApiResult<T> = Result<T, ApiError>;
+
+/// Geometric Jacobian of one configuration, with manipulability, condition
+/// number and singular flag. Columns are per rad (revolute) or per length
+/// unit (prismatic) whatever `angle_unit` the request used.
+#[utoipa::path(post, path = "/v1/robots/{name}/jacobian", tag = "velocity", request_body = JacobianRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "The Jacobian of the tool point in the asked frame, its measures and the tool pose", body = JacobianOutput,
+            example = json!({"robot": "planar_2dof", "length_unit": "m", "frame": "base",
+                "jacobian": [[-0.48977774788672046, -0.2897777478867205], [0.4240558750445318, 0.07764571353075628],
+                    [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
+                "manipulability": 0.08485281374238575, "condition_number": 5.835575728945763, "singular": false,
+                "pose": {"matrix": [[0.2588190451025209, -0.9659258262890682, 0.0, 0.4240558750445318],
+                        [0.9659258262890682, 0.2588190451025209, 0.0, 0.48977774788672046], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.4240558750445318, 0.48977774788672046, 0.0],
+                    "quaternion": {"w": 0.7933533402912353, "x": 0.0, "y": 0.0, "z": 0.6087614290087205},
+                    "rpy": [0.0, 0.0, 1.308996938995747]}})),
+        (status = 400, description = "Malformed JSON or wrong types", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: frame: unknown variant `world`, expected `base` or `tool`",
+                "errors": [{"field": "frame", "message": "unknown variant `world`, expected `base` or `tool`"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413, "detail": "too large: request body is over the limit of 1048576 bytes"})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Wrong joint count or a value outside the limits", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: joints: robot 'planar_2dof' has 2 movable joints, got 3 values",
+                "errors": [{"field": "joints", "message": "robot 'planar_2dof' has 2 movable joints, got 3 values"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+pub async fn jacobian(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<JacobianRequest>,
+) -> ApiResult<Json<JacobianOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let answer = state.service.jacobian(robot, &JacobianSpec::from(req))?;
+    Ok(Json(JacobianOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        result: JacobianItem::from(&answer),
+    }))
+}
+
+/// Jacobians of many configurations, in request order; one bad configuration
+/// fails the batch, naming it (`configurations[17][2]`).
+#[utoipa::path(post, path = "/v1/robots/{name}/jacobian/batch", tag = "velocity", request_body = JacobianBatchRequest,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "One Jacobian with its measures and pose per configuration, in request order", body = JacobianBatchOutput,
+            example = json!({"robot": "planar_2dof", "length_unit": "m", "results": [{"frame": "tool",
+                "jacobian": [[0.0, 0.0], [0.7, 0.29999999999999993], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
+                "manipulability": 0.0, "condition_number": null, "singular": true,
+                "pose": {"matrix": [[1.0, 0.0, 0.0, 0.7], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.7, 0.0, 0.0], "quaternion": {"w": 1.0, "x": 0.0, "y": 0.0, "z": 0.0}, "rpy": [0.0, 0.0, 0.0]}}]})),
+        (status = 400, description = "Malformed JSON or wrong types", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
+                "detail": "malformed input: configurations[0][1]: invalid type: string \"x\", expected f64",
+                "errors": [{"field": "configurations[0][1]", "message": "invalid type: string \"x\", expected f64"}]})),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "More configurations than the batch limit, or body over the size limit", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413,
+                "detail": "too large: a batch holds at most 10000 configurations, got 10001",
+                "errors": [{"field": "configurations", "message": "a batch holds at most 10000 configurations, got 10001"}]})),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "A configuration with the wrong joint count or a value outside the limits", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: configurations[1][0]: 4 rad is outside the limits [-2.96706, 2.96706] rad of joint 'joint1'",
+                "errors": [{"field": "configurations[1][0]", "message": "4 rad is outside the limits [-2.96706, 2.96706] rad of joint 'joint1'"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+pub async fn jacobian_batch(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    JsonBody(req): JsonBody<JacobianBatchRequest>,
+) -> ApiResult<Json<JacobianBatchOutput>> {
+    let entry = state.service.robot(&name)?;
+    let robot = &entry.robot;
+    let answers = state
+        .service
+        .jacobian_batch(robot, &JacobianBatchSpec::from(req))?;
+    Ok(Json(JacobianBatchOutput {
+        robot: robot.name().to_string(),
+        length_unit: robot.length_unit(),
+        results: answers.iter().map(JacobianItem::from).collect(),
+    }))
+}
