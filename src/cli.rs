@@ -6,10 +6,10 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::process::ExitCode;
 use std::time::Duration;
 
-use crate::api::pose::{FkOutput, Pose};
-use crate::api::rest::LinkTransformsOutput;
 use crate::api::ik::{IkItem, IkOutput};
 use crate::api::jacobian::{JacobianItem, JacobianOutput};
+use crate::api::pose::{FkOutput, Pose};
+use crate::api::rest::LinkTransformsOutput;
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, FrameArg, IkArgs, JacobianArgs,
     LinkTransformsArgs, ModelArgs, ServeConfig,

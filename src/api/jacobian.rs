@@ -76,4 +76,3 @@ pub struct JacobianBatchOutput {
     /// One result per configuration, in request order.
     pub results: Vec<JacobianItem>,
 }
-

@@ -9,8 +9,8 @@
 
 use std::time::{Duration, Instant};
 
-use kinserve::api::rest::{Problem, WsRequest};
 use kinserve::api::ik::IkItem;
+use kinserve::api::rest::{Problem, WsRequest};
 use kinserve::error::Error;
 use kinserve_kinematics::JointKind;
 use kinserve_kinematics::ik::rotation_error;

@@ -232,3 +232,39 @@ async fn a_body_over_the_limit_is_413() {
     )
     .await;
 }
+
+/// Every batch route (FK, Jacobian, IK) reads a body within the batch body
+/// limit, and its single sibling refuses the same body (413): the larger
+/// limit goes with the routes declared as batches, each of them.
+#[tokio::test]
+async fn every_batch_route_and_only_they_take_the_batch_body_limit() {
+    let app = spawn_app_with(|c| {
+        c.max_body_bytes = 2048;
+        c.max_batch_body_bytes = 4096;
+    })
+    .await;
+    // ~3 KB: over the body limit, under the batch body limit.
+    let body = json!({"configurations": vec![[0.0, 0.0]; 300]});
+    for op in ["fk", "jacobian", "ik"] {
+        let batch = app
+            .post(&format!("/v1/robots/planar_2dof/{op}/batch"), &body)
+            .await;
+        // The IK batch reads it and finds no targets (400/422); the others compute it.
+        assert_ne!(
+            batch.status(),
+            413,
+            "{op}/batch: {}",
+            batch.text().await.unwrap()
+        );
+        assert!(
+            batch.status().as_u16() < 500,
+            "{op}/batch: {}",
+            batch.status()
+        );
+        let single = app
+            .post(&format!("/v1/robots/planar_2dof/{op}"), &body)
+            .await;
+        let p = problem(single, 413).await;
+        assert_eq!(p["type"], "urn:kinserve:problem:too-large", "{op}");
+    }
+}

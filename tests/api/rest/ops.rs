@@ -327,6 +327,7 @@ async fn metrics_expose_requests_latency_poses_and_robots() {
         .await;
     assert_eq!(r.status(), 200);
     assert_eq!(app.get("/v1/robots/nope").await.status(), 404);
+    assert_eq!(app.get("/no/such/route/x").await.status(), 404);
 
     let r = app.get("/metrics").await;
     assert_eq!(r.status(), 200);
@@ -360,6 +361,17 @@ async fn metrics_expose_requests_latency_poses_and_robots() {
         .is_some_and(|v| v >= 1.0),
         "{text}"
     );
+    // A path no route matches has the one fixed label, never its own path.
+    assert!(
+        metric_value(
+            &text,
+            requests,
+            &[r#"route="unmatched""#, r#"status="404""#]
+        )
+        .is_some_and(|v| v >= 1.0),
+        "{text}"
+    );
+    assert!(!text.contains("/no/such/route"), "{text}");
     assert!(
         metric_value(
             &text,
