@@ -133,7 +133,7 @@ mod tests {
     #[test]
     fn batch_routes_are_declared_in_the_batch_group_and_only_they() {
         let all = paths_by_group();
-        assert_eq!(all.len(), 14, "{all:?}");
+        assert_eq!(all.len(), 15, "{all:?}");
         for (group, path) in &all {
             assert_eq!(
                 *group == Group::Batch,
