@@ -1,5 +1,5 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and
-//! reflection, split by role: [`server`] sets up the listener and its layers,
+//! reflection, split by role: `server` sets up the listener and its layers,
 //! `methods` answers each call, `stream` runs the bidirectional FK stream;
 //! `status` maps [`Error`] to gRPC statuses. The generated types and the
 //! conversions to and from the model's requests live in `kinserve-api`
