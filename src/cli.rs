@@ -116,11 +116,7 @@ fn fk(args: &FkArgs) -> ExitCode {
         Ok(r) => r,
         Err(code) => return code,
     };
-    let unit = if args.deg {
-        AngleUnit::Deg
-    } else {
-        AngleUnit::Rad
-    };
+    let unit = angle_unit(args.deg);
     let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
     let result = robot.check_joints(&args.joints, &opts).map(|q| {
         let (t, frames) = q.fk_with_frames(args.frames);
@@ -156,6 +152,11 @@ fn fk(args: &FkArgs) -> ExitCode {
     }
 }
 
+/// The angle unit of the joint values the flags give (`--deg` or rad).
+fn angle_unit(deg: bool) -> AngleUnit {
+    if deg { AngleUnit::Deg } else { AngleUnit::Rad }
+}
+
 /// Prints `value` as pretty JSON; `code` if that worked.
 fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
     match serde_json::to_string_pretty(value) {
@@ -175,11 +176,7 @@ fn jacobian(args: &JacobianArgs) -> ExitCode {
         Ok(r) => r,
         Err(code) => return code,
     };
-    let unit = if args.deg {
-        AngleUnit::Deg
-    } else {
-        AngleUnit::Rad
-    };
+    let unit = angle_unit(args.deg);
     let frame = match args.frame {
         FrameArg::Base => ReferenceFrame::Base,
         FrameArg::Tool => ReferenceFrame::Tool,
@@ -206,11 +203,7 @@ fn link_transforms(args: &LinkTransformsArgs) -> ExitCode {
         Ok(r) => r,
         Err(code) => return code,
     };
-    let unit = if args.deg {
-        AngleUnit::Deg
-    } else {
-        AngleUnit::Rad
-    };
+    let unit = angle_unit(args.deg);
     let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
     match robot.check_joints(&args.joints, &opts) {
         Ok(q) => {
@@ -267,11 +260,7 @@ fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
             quaternion,
         },
         seed: args.seed.clone(),
-        angle_unit: if args.deg {
-            AngleUnit::Deg
-        } else {
-            AngleUnit::Rad
-        },
+        angle_unit: angle_unit(args.deg),
         position_only: args.position_only,
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,

@@ -25,11 +25,10 @@ impl GrpcService {
     /// then ends INTERNAL).
     async fn stream_reply(
         &self,
-        mut msg: pb::StreamForwardKinematicsRequest,
+        msg: pb::StreamForwardKinematicsRequest,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let id = msg.id;
-        let robot = std::mem::take(&mut msg.robot);
-        let answer = std::panic::AssertUnwindSafe(self.stream_answer(robot, msg))
+        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg))
             .catch_unwind()
             .await
             .map_err(|panic| {
@@ -52,11 +51,8 @@ impl GrpcService {
 
     async fn stream_answer(
         &self,
-        robot: String,
-        mut msg: pb::StreamForwardKinematicsRequest,
+        msg: pb::StreamForwardKinematicsRequest,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
-        // The robot is named in the message: kept there for `ik.robot`'s check.
-        msg.robot = robot;
         let entry = self.service.robot_at(&msg.robot, "robot")?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
