@@ -9,6 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use crate::api::budget::{ByteBudget, StreamBudget};
 use crate::api::grpc::GrpcSettings;
 use crate::api::rest::RestSettings;
+use crate::compute::{ComputePool, share_of};
 use crate::model::ModelLimits;
 use crate::service::ServiceLimits;
 
@@ -415,9 +416,10 @@ pub struct ServeConfig {
     /// at once; an answer that does not fit is replaced by 503 (Retry-After).
     #[arg(long, env = "KINSERVE_MAX_BUFFERED_RESPONSE_BYTES", default_value_t = 64 << 20, value_parser = parse_at_most::<MAX_BUFFERED_BYTES>)]
     pub max_buffered_response_bytes: usize,
-    /// Most batch requests (REST `…/batch`) computed at once; more wait their
-    /// turn within the request timeout. 0: one less than the number of CPUs
-    /// (at least 1), so that a core is left for everything else.
+    /// Most batch requests (REST `…/batch`) under way at once; more wait
+    /// their turn within the request timeout, except that a client already
+    /// holding its share (--client-share-percent) is refused at once (503).
+    /// 0: one less than the number of CPUs, at least 2.
     #[arg(long, env = "KINSERVE_MAX_CONCURRENT_BATCHES", default_value_t = 0, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_concurrent_batches: usize,
     /// On shutdown, how long `/readyz` (and gRPC health) answer not-ready while
@@ -433,6 +435,28 @@ pub struct ServeConfig {
     /// answered (not converged). An IK batch may take half the request timeout.
     #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_ik_time_limit)]
     pub ik_time_limit: Duration,
+    /// Computations at once on the compute pool: IK (single, batch, stream
+    /// messages), FK and Jacobian batches, closed forms and URDF exports.
+    /// More are refused at once (503 + Retry-After, RESOURCE_EXHAUSTED).
+    /// 0: one less than the number of CPUs, at least 2 (so that two clients
+    /// each have one).
+    #[arg(long, env = "KINSERVE_COMPUTE_THREADS", default_value_t = 0, value_parser = parse_at_most::<4096>)]
+    pub compute_threads: usize,
+    /// Percent of each budget one client may hold: requests in flight,
+    /// streams, batch slots, compute permits (at least one of each). A client
+    /// is a peer IP address (IPv6: its /64), or the last X-Forwarded-For
+    /// address with --trust-forwarded-for.
+    #[arg(long, env = "KINSERVE_CLIENT_SHARE_PERCENT", default_value_t = 50, value_parser = clap::value_parser!(u8).range(1..=100))]
+    pub client_share_percent: u8,
+    /// The peers are the operator's proxies: the last X-Forwarded-For address
+    /// (REST header, gRPC metadata) names the client. Off by default: a
+    /// client could otherwise claim any address.
+    #[arg(long, env = "KINSERVE_TRUST_FORWARDED_FOR", default_value_t = false, action = clap::ArgAction::Set)]
+    pub trust_forwarded_for: bool,
+    /// A stream (WebSocket, gRPC stream) whose client sends no message this
+    /// long after it opened is closed (at most --stream-idle-timeout).
+    #[arg(long, env = "KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
+    pub stream_first_message_timeout: Duration,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -471,6 +495,10 @@ impl std::fmt::Debug for ServeConfig {
             shutdown_grace,
             shutdown_timeout,
             ik_time_limit,
+            compute_threads,
+            client_share_percent,
+            trust_forwarded_for,
+            stream_first_message_timeout,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -506,6 +534,10 @@ impl std::fmt::Debug for ServeConfig {
             .field("shutdown_grace", shutdown_grace)
             .field("shutdown_timeout", shutdown_timeout)
             .field("ik_time_limit", ik_time_limit)
+            .field("compute_threads", compute_threads)
+            .field("client_share_percent", client_share_percent)
+            .field("trust_forwarded_for", trust_forwarded_for)
+            .field("stream_first_message_timeout", stream_first_message_timeout)
             .finish()
     }
 }
@@ -561,12 +593,13 @@ impl ServeConfig {
             body_timeout: self.body_timeout,
             max_buffered_response_bytes: self.max_buffered_response_bytes,
             max_concurrent_batches: match self.max_concurrent_batches {
-                // Batches are computed on the async workers: leave one for I/O.
-                0 => std::thread::available_parallelism()
-                    .map_or(1, |n| n.get().saturating_sub(1).max(1)),
+                0 => ComputePool::default_permits(),
                 n => n,
             },
+            client_share_percent: self.client_share_percent,
+            trust_forwarded_for: self.trust_forwarded_for,
             stream_idle_timeout: self.stream_idle_timeout,
+            stream_first_message_timeout: self.stream_first_message_timeout,
             cors_origins: self.cors_origins.clone(),
             access_log: self.access_log,
         }
@@ -578,7 +611,9 @@ impl ServeConfig {
             max_message_bytes: self.max_batch_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
+            stream_first_message_timeout: self.stream_first_message_timeout,
             access_log: self.access_log,
+            trust_forwarded_for: self.trust_forwarded_for,
         }
     }
 
@@ -591,7 +626,11 @@ impl ServeConfig {
     /// The stream budget these settings describe (one per server, shared by
     /// the WebSocket and gRPC adapters).
     pub fn stream_budget(&self) -> StreamBudget {
-        StreamBudget::new(self.max_streams, self.max_streams_per_connection)
+        StreamBudget::new(
+            self.max_streams,
+            self.max_streams_per_connection,
+            share_of(self.max_streams, self.client_share_percent),
+        )
     }
 
     /// The service limits this configuration sets.
@@ -604,6 +643,11 @@ impl ServeConfig {
             max_batch: self.max_batch,
             ik_time_limit: self.ik_time_limit,
             ik_batch_time_limit: self.request_timeout / 2,
+            compute_permits: match self.compute_threads {
+                0 => ComputePool::default_permits(),
+                n => n,
+            },
+            client_share_percent: self.client_share_percent,
         }
     }
 }

@@ -7,14 +7,15 @@ use std::time::{Duration, Instant};
 
 use subtle::ConstantTimeEq;
 
+use crate::compute::{ClientId, ComputePool, cancelled, share_of, stopped};
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
 use crate::model::{
-    ClosedForm, FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer,
-    JacobianBatchSpec, JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits,
-    PoseFormat, Robot, RobotSpec, StreamOp,
+    FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, JacobianBatchSpec,
+    JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits, PoseFormat, Robot,
+    RobotSpec, StreamOp,
 };
-use crate::registry::{Condition, Entry, Origin, PutMode, Registry};
+use crate::registry::{ClosedFormResult, Condition, Entry, Origin, PutMode, Registry};
 
 /// Limits the service enforces on requests.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,6 +30,11 @@ pub struct ServiceLimits {
     /// Longest time one IK batch may take (default 15 s, half the default
     /// request timeout); targets left when it runs out are answered unsolved.
     pub ik_batch_time_limit: Duration,
+    /// Computations (IK, batches, closed forms, URDF) at once on the compute
+    /// pool (default: one per CPU but one, at least one).
+    pub compute_permits: usize,
+    /// Percent of every budget one client may hold (default 50; at least one unit).
+    pub client_share_percent: u8,
 }
 
 impl ServiceLimits {
@@ -43,6 +49,8 @@ impl Default for ServiceLimits {
             max_batch: 10_000,
             ik_time_limit: Self::DEFAULT_IK_TIME_LIMIT,
             ik_batch_time_limit: Duration::from_secs(15),
+            compute_permits: ComputePool::default_permits(),
+            client_share_percent: 50,
         }
     }
 }
@@ -71,17 +79,25 @@ pub struct Service {
     limits: ServiceLimits,
     ready: AtomicBool,
     token: Option<String>,
+    pool: ComputePool,
 }
 
 impl Service {
     /// A service over `registry`; `token`, if set, guards every mutation.
     pub fn new(registry: Registry, limits: ServiceLimits, token: Option<String>) -> Service {
+        let permits = limits.compute_permits;
         Service {
             registry,
             limits,
             ready: AtomicBool::new(false),
             token: token.filter(|t| !t.is_empty()),
+            pool: ComputePool::new(permits, share_of(permits, limits.client_share_percent)),
         }
+    }
+
+    /// The compute pool the expensive operations run on.
+    pub fn pool(&self) -> &ComputePool {
+        &self.pool
     }
 
     /// Whether the service takes traffic (robots loaded, not shutting down).
@@ -234,17 +250,25 @@ impl Service {
         scored.into_iter().take(3).map(|(_, n)| n).collect()
     }
 
-    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]);
-    /// invalid input when it is too long to print.
-    pub fn closed_form(&self, name: &str) -> Result<ClosedForm> {
+    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]),
+    /// computed once per robot version on the compute pool (`client`'s
+    /// share) and kept; too large to print is [`Error::TooLarge`] on `links`.
+    pub async fn closed_form(&self, client: ClientId, name: &str) -> Result<Arc<ClosedFormResult>> {
         let entry = self.robot(name)?;
-        Ok(ClosedForm::of(&entry.robot)?)
+        if let Some(known) = entry.closed_form_if_known() {
+            return Ok(known);
+        }
+        self.pool
+            .run(client, move |_| Ok(entry.closed_form()))
+            .await
     }
 
-    /// Robot `name` as a URDF document (metres, radians).
-    pub fn urdf(&self, name: &str) -> Result<String> {
+    /// Robot `name` as a URDF document (metres, radians), written on the compute pool.
+    pub async fn urdf(&self, client: ClientId, name: &str) -> Result<String> {
         let entry = self.robot(name)?;
-        Ok(crate::model::to_urdf(&entry.robot))
+        self.pool
+            .run(client, move |_| Ok(crate::model::to_urdf(&entry.robot)))
+            .await
     }
 
     /// Validates and registers a model, durably, if `cond` holds (`If-Match`,
@@ -399,9 +423,24 @@ impl Service {
     /// [`ServiceLimits::ik_time_limit`]). Not converged is
     /// [`Error::IkNotConverged`] carrying the best attempt.
     pub fn ik(&self, robot: &Robot, spec: &IkSpec) -> Result<IkAnswer> {
+        self.ik_cancellable(robot, spec, &AtomicBool::new(false))
+    }
+
+    /// [`Service::ik`] that gives up within one iteration once `cancel` is
+    /// set ([`crate::compute::stopped`]).
+    fn ik_cancellable(
+        &self,
+        robot: &Robot,
+        spec: &IkSpec,
+        cancel: &AtomicBool,
+    ) -> Result<IkAnswer> {
         let request = robot.check_ik(spec)?;
         // A limit too long to represent (set in code; the command line caps it) is no limit.
-        let answer = request.solve(Instant::now().checked_add(self.limits.ik_time_limit));
+        let deadline = Instant::now().checked_add(self.limits.ik_time_limit);
+        let answer = request.solve_cancellable(deadline, cancel);
+        if cancelled(cancel) {
+            return Err(stopped());
+        }
         metrics::counter!("kinserve_ik_solves_total", "converged" => if answer.converged { "true" } else { "false" }).increment(1);
         if answer.converged {
             Ok(answer)
@@ -416,6 +455,15 @@ impl Service {
     /// Validates and solves an IK batch on this thread: every target
     /// answered in order, converged or not (see [`IkBatch::solve`](crate::model::IkBatch::solve)).
     pub fn ik_batch(&self, robot: &Robot, spec: &IkBatchSpec) -> Result<Vec<IkAnswer>> {
+        self.ik_batch_cancellable(robot, spec, &AtomicBool::new(false))
+    }
+
+    fn ik_batch_cancellable(
+        &self,
+        robot: &Robot,
+        spec: &IkBatchSpec,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<IkAnswer>> {
         self.check_batch_size(spec.targets.len())
             .map_err(|_| self.targets_too_large(spec.targets.len()))?;
         let batch = robot.check_ik_batch(spec)?;
@@ -426,7 +474,10 @@ impl Service {
             .limits
             .ik_time_limit
             .min(deadline.saturating_duration_since(now));
-        let answers = batch.solve(per_target, deadline);
+        let answers = batch.solve_cancellable(per_target, deadline, cancel);
+        if cancelled(cancel) {
+            return Err(stopped());
+        }
         let converged = answers.iter().filter(|a| a.converged).count() as u64;
         metrics::counter!("kinserve_ik_solves_total", "converged" => "true").increment(converged);
         metrics::counter!("kinserve_ik_solves_total", "converged" => "false")
@@ -444,35 +495,84 @@ impl Service {
         }
     }
 
-    /// [`Service::ik`] on the blocking pool, so a long solve does not hold
-    /// up the async front doors.
-    pub async fn ik_blocking(
+    /// [`Service::ik`] on the compute pool under one of `client`'s permits
+    /// (refused at once when none is free); stops when the caller does.
+    pub async fn ik_on_pool(
         self: &Arc<Self>,
+        client: ClientId,
         robot: Arc<Entry>,
         spec: IkSpec,
     ) -> Result<IkAnswer> {
         let this = Arc::clone(self);
-        tokio::task::spawn_blocking(move || this.ik(&robot.robot, &spec))
+        self.pool
+            .run(client, move |cancel| {
+                this.ik_cancellable(&robot.robot, &spec, cancel)
+            })
             .await
-            .map_err(|e| Error::Internal {
-                detail: e.to_string(),
-            })?
     }
 
-    /// [`Service::ik_batch`] on the blocking pool.
-    pub async fn ik_batch_blocking(
+    /// [`Service::ik_batch`] on the compute pool; stops when the caller does.
+    pub async fn ik_batch_on_pool(
         self: &Arc<Self>,
+        client: ClientId,
         robot: Arc<Entry>,
         spec: IkBatchSpec,
     ) -> Result<Vec<IkAnswer>> {
         let this = Arc::clone(self);
-        tokio::task::spawn_blocking(move || this.ik_batch(&robot.robot, &spec))
+        self.pool
+            .run(client, move |cancel| {
+                this.ik_batch_cancellable(&robot.robot, &spec, cancel)
+            })
             .await
-            .map_err(|e| Error::Internal {
-                detail: e.to_string(),
-            })?
+    }
+
+    /// [`Service::fk_batch`] on the compute pool, under one of `client`'s permits.
+    pub async fn fk_batch_on_pool(
+        self: &Arc<Self>,
+        client: ClientId,
+        robot: Arc<Entry>,
+        spec: FkBatchSpec,
+    ) -> Result<(Vec<Transform>, FkBatchSpec)> {
+        self.check_batch_size(spec.configurations.len())?;
+        let this = Arc::clone(self);
+        self.pool
+            .run(client, move |_| {
+                // One kernel pass: 10,000 poses take well under a millisecond.
+                let poses = this.fk_batch(&robot.robot, &spec)?;
+                Ok((poses, spec))
+            })
+            .await
+    }
+
+    /// [`Service::jacobian_batch`] on the compute pool; stops (checked every
+    /// [`CANCEL_CHUNK`] configurations) when the caller does.
+    pub async fn jacobian_batch_on_pool(
+        self: &Arc<Self>,
+        client: ClientId,
+        robot: Arc<Entry>,
+        spec: JacobianBatchSpec,
+    ) -> Result<Vec<JacobianAnswer>> {
+        self.check_batch_size(spec.configurations.len())?;
+        self.pool
+            .run(client, move |cancel| {
+                let c = &spec.configurations;
+                let batch = robot.robot.check_batch(&c.values, &c.lens, &spec.options)?;
+                let mut out = Vec::with_capacity(batch.len());
+                for (i, q) in batch.vectors().enumerate() {
+                    if i.is_multiple_of(CANCEL_CHUNK) && cancelled(cancel) {
+                        return Err(stopped());
+                    }
+                    out.push(q.jacobian(spec.frame));
+                }
+                Ok(out)
+            })
+            .await
     }
 }
+
+/// Configurations computed between two looks at the cancel flag (a few
+/// hundred microseconds of Jacobians).
+pub const CANCEL_CHUNK: usize = 64;
 
 /// The answer to one FK request: the tool pose, and every frame when asked for.
 #[derive(Clone, Debug, PartialEq)]
@@ -506,15 +606,18 @@ pub enum StreamAnswer {
 impl Service {
     /// Answers one stream message for `entry`: FK (with the Jacobian and the
     /// link transforms when asked for, validated once) on this task, IK on
-    /// the blocking pool. Counts the poses under `protocol`.
+    /// the compute pool under one of `client`'s permits. Counts the poses under `protocol`.
     pub async fn stream_step(
         self: &Arc<Self>,
         entry: Arc<Entry>,
         op: StreamOp,
         protocol: crate::telemetry::Protocol,
+        client: ClientId,
     ) -> Result<StreamAnswer> {
         match op {
-            StreamOp::Ik(spec) => Ok(StreamAnswer::Ik(self.ik_blocking(entry, *spec).await?)),
+            StreamOp::Ik(spec) => Ok(StreamAnswer::Ik(
+                self.ik_on_pool(client, entry, *spec).await?,
+            )),
             StreamOp::Fk {
                 fk,
                 jacobian,

@@ -7,13 +7,13 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 
 use tokio::net::TcpListener;
-use tokio::sync::Semaphore;
 use tokio_util::sync::CancellationToken;
 
 pub use http_server::HttpServerSettings;
 
 use crate::api::budget::{Budgets, ConnectionSlots};
 use crate::api::rest::{self, AppInner, AppState};
+use crate::compute::{FairBudget, share_of};
 use crate::config::ServeConfig;
 use crate::registry::postgres::sync::{Applier, Syncer};
 use crate::registry::postgres::{PgSettings, PgStore};
@@ -133,7 +133,10 @@ impl App {
         if let Some(syncer) = syncer {
             tokio::spawn(syncer.run(applier(service.clone()), stop.clone()));
         }
-        let permits = Arc::new(Semaphore::new(config.max_concurrent_requests.max(1)));
+        let permits = FairBudget::new(
+            config.max_concurrent_requests,
+            share_of(config.max_concurrent_requests, config.client_share_percent),
+        );
         let streams = config.stream_budget();
         let request_bytes = config.request_byte_budget();
         let connections = ConnectionSlots::new(config.max_connections);

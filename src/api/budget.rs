@@ -23,6 +23,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
+use crate::compute::{ClientId, FairBudget, FairPermit};
 use crate::error::Error;
 
 /// Takes `n` from `counter` if the result stays within `limit`.
@@ -77,7 +78,7 @@ pub async fn accept_error(e: std::io::Error) {
 #[derive(Clone, Debug)]
 pub struct Budgets {
     /// Requests in flight (REST requests and gRPC unary calls together).
-    pub permits: Arc<Semaphore>,
+    pub permits: FairBudget,
     /// Open streams.
     pub streams: StreamBudget,
     /// Buffered request bytes.
@@ -92,7 +93,7 @@ pub struct Budgets {
 /// protocols, and at most `per_connection` on one connection.
 #[derive(Clone, Debug)]
 pub struct StreamBudget {
-    total: Arc<Semaphore>,
+    total: FairBudget,
     per_connection: usize,
 }
 
@@ -112,7 +113,7 @@ impl ConnectionStreams {
 /// One open stream's share of the [`StreamBudget`]; dropping it frees it.
 #[derive(Debug)]
 pub struct StreamPermit {
-    _total: OwnedSemaphorePermit,
+    _total: FairPermit,
     connection: Option<ConnectionStreams>,
 }
 
@@ -126,40 +127,44 @@ impl Drop for StreamPermit {
 
 impl StreamBudget {
     /// A budget of `total` streams (at least one), at most `per_connection`
-    /// (at least one) on any connection.
-    pub fn new(total: usize, per_connection: usize) -> StreamBudget {
+    /// (at least one) on any connection and `per_client` on any client's.
+    pub fn new(total: usize, per_connection: usize, per_client: usize) -> StreamBudget {
         StreamBudget {
-            total: Arc::new(Semaphore::new(total.clamp(1, Semaphore::MAX_PERMITS))),
+            total: FairBudget::new(total, per_client),
             per_connection: per_connection.max(1),
         }
     }
 
     /// Streams that may still open (over all connections).
     pub fn available(&self) -> usize {
-        self.total.available_permits()
+        self.total.available()
     }
 
-    /// Opens a stream on `connection` (`None`: a transport that does not
-    /// tell connections apart; only the total applies), or refuses it with
-    /// [`Error::Overloaded`] when the connection or the server has as many as
-    /// it may.
-    pub fn try_open(&self, connection: Option<&ConnectionStreams>) -> Result<StreamPermit, Error> {
+    /// Opens a stream for `client` on `connection` (`None`: a transport that
+    /// does not tell connections apart; only the total and the client's share
+    /// apply), or refuses it with [`Error::Overloaded`] when the connection,
+    /// the client or the server has as many as it may.
+    pub fn try_open(
+        &self,
+        connection: Option<&ConnectionStreams>,
+        client: ClientId,
+    ) -> Result<StreamPermit, Error> {
         if let Some(c) = connection
             && !try_add(&c.0, 1, self.per_connection)
         {
             return Err(Error::Overloaded);
         }
         let connection = connection.cloned();
-        match self.total.clone().try_acquire_owned() {
+        match self.total.try_acquire(client) {
             Ok(total) => Ok(StreamPermit {
                 _total: total,
                 connection,
             }),
-            Err(_) => {
+            Err(e) => {
                 if let Some(c) = &connection {
                     c.0.fetch_sub(1, Ordering::AcqRel);
                 }
-                Err(Error::Overloaded)
+                Err(e)
             }
         }
     }
@@ -272,17 +277,18 @@ mod tests {
 
     #[test]
     fn streams_are_limited_per_connection_and_in_total() {
-        let budget = StreamBudget::new(3, 2);
+        let budget = StreamBudget::new(3, 2, 3);
+        let who = ClientId::UNKNOWN;
         let (a, b) = (ConnectionStreams::default(), ConnectionStreams::default());
-        let a1 = budget.try_open(Some(&a)).unwrap();
-        let _a2 = budget.try_open(Some(&a)).unwrap();
-        assert!(budget.try_open(Some(&a)).is_err(), "per connection");
-        let _b1 = budget.try_open(Some(&b)).unwrap();
-        assert!(budget.try_open(Some(&b)).is_err(), "in total");
+        let a1 = budget.try_open(Some(&a), who).unwrap();
+        let _a2 = budget.try_open(Some(&a), who).unwrap();
+        assert!(budget.try_open(Some(&a), who).is_err(), "per connection");
+        let _b1 = budget.try_open(Some(&b), who).unwrap();
+        assert!(budget.try_open(Some(&b), who).is_err(), "in total");
         assert_eq!(b.open(), 1, "a refusal gives the connection's slot back");
         drop(a1);
         assert_eq!(a.open(), 1);
-        let _b2 = budget.try_open(Some(&b)).unwrap();
+        let _b2 = budget.try_open(Some(&b), who).unwrap();
         assert_eq!(budget.available(), 0);
     }
 

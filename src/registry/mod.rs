@@ -44,7 +44,13 @@ pub struct Entry {
     etag: String,
     /// Its `kinserve_poses_computed_total` counters, resolved on first use.
     poses: OnceLock<PoseCounters>,
+    /// Its closed form (or why there is none), computed at most once per
+    /// version: a new version is a new entry.
+    closed_form: OnceLock<Arc<ClosedFormResult>>,
 }
+
+/// A robot's closed form, or why it has none.
+pub type ClosedFormResult = std::result::Result<crate::model::ClosedForm, crate::model::ModelError>;
 
 impl Entry {
     /// An entry for `robot` with no stored version (a built-in's ETag is a
@@ -57,6 +63,7 @@ impl Entry {
             version: None,
             etag,
             poses: OnceLock::new(),
+            closed_form: OnceLock::new(),
         }
     }
 
@@ -68,6 +75,7 @@ impl Entry {
             etag: version.etag(),
             version: Some(version),
             poses: OnceLock::new(),
+            closed_form: OnceLock::new(),
         }
     }
 
@@ -79,6 +87,19 @@ impl Entry {
     /// The stored revision (registered robots only).
     pub fn revision(&self) -> Option<u64> {
         self.version.map(|v| v.revision)
+    }
+
+    /// Its closed form, computed by the first caller (others wait for it).
+    pub fn closed_form(&self) -> Arc<ClosedFormResult> {
+        Arc::clone(
+            self.closed_form
+                .get_or_init(|| Arc::new(crate::model::ClosedForm::of(&self.robot))),
+        )
+    }
+
+    /// Its closed form if it has been computed.
+    pub fn closed_form_if_known(&self) -> Option<Arc<ClosedFormResult>> {
+        self.closed_form.get().map(Arc::clone)
     }
 
     /// Counts `n` poses computed for this robot over `protocol`.

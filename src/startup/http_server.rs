@@ -71,7 +71,7 @@ pub async fn serve_http(
     // Every connection task holds a sender: `recv` answers `None` once all are gone.
     let (open, mut all_closed) = mpsc::channel::<()>(1);
     loop {
-        let (tcp, _peer) = tokio::select! {
+        let (tcp, peer) = tokio::select! {
             _ = stop.cancelled() => break,
             r = listener.accept() => match r {
                 Ok(conn) => conn,
@@ -99,6 +99,7 @@ pub async fn serve_http(
             stop: stop.clone(),
             _open: open.clone(),
             _slot: slot,
+            peer: crate::api::rest::PeerAddr(peer),
         };
         tokio::spawn(conn.serve(tcp));
     }
@@ -132,6 +133,8 @@ struct Conn {
     _open: mpsc::Sender<()>,
     /// The connection's slot of `--max-connections`, freed when it ends.
     _slot: tokio::sync::OwnedSemaphorePermit,
+    /// Who is on the other end (for the per-client shares).
+    peer: crate::api::rest::PeerAddr,
 }
 
 impl Conn {
@@ -141,8 +144,10 @@ impl Conn {
         let seen = activity.clone();
         // The connection's open streams (WebSockets), for the per-connection budget.
         let streams = crate::api::budget::ConnectionStreams::default();
+        let peer = self.peer;
         let service = tower::service_fn(move |mut req: hyper::Request<Incoming>| {
             let busy = seen.enter();
+            req.extensions_mut().insert(peer);
             req.extensions_mut().insert(seen.clone());
             req.extensions_mut().insert(streams.clone());
             let router = router.clone();

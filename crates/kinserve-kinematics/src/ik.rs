@@ -20,6 +20,7 @@
 //! must not depend on serde or any other kinserve crate.
 
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
@@ -190,6 +191,11 @@ pub fn rotation_error(target: &Transform, pose: &Transform) -> [f64; 3] {
     [x * k, y * k, z * k]
 }
 
+/// Whether a solve must give up now: its deadline passed or it was cancelled.
+fn stopped(opts: &IkOptions, cancel: &AtomicBool) -> bool {
+    cancel.load(Ordering::Relaxed) || opts.deadline.is_some_and(|d| Instant::now() >= d)
+}
+
 fn norm3(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -232,6 +238,35 @@ impl<'a> IkSolver<'a> {
     /// answered within π of the seed (of 0 without one); limited joints whose
     /// range spans more than a turn, as close to it as their limits allow.
     pub fn solve(&self, target: &Transform, seed: Option<&[f64]>, opts: &IkOptions) -> IkSolution {
+        static NEVER: AtomicBool = AtomicBool::new(false);
+        self.solve_cancellable(target, seed, opts, &NEVER)
+    }
+
+    /// [`IkSolver::solve`] that also gives up (answering the best attempt so
+    /// far, as at the deadline) once `cancel` is set — by another thread, for
+    /// a client that left. Checked once per iteration (a few µs).
+    ///
+    /// ```
+    /// use std::sync::atomic::AtomicBool;
+    /// use kinserve_kinematics::ik::{IkOptions, IkSolver};
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+    ///
+    /// let row = |a| DhRow { kind: JointKind::Revolute, a, alpha: 0.0, d: 0.0, theta: 0.0 };
+    /// let chain = Chain::new(Convention::Standard, &[row(1.0), row(1.0)], Transform::IDENTITY, None);
+    /// let solver = IkSolver::new(&chain, &[]);
+    /// let target = chain.forward(&[0.3, 0.4], 1.0);
+    /// let opts = IkOptions { position_only: true, ..IkOptions::default() };
+    /// let cancelled = AtomicBool::new(true);
+    /// let s = solver.solve_cancellable(&target, None, &opts, &cancelled);
+    /// assert_eq!(s.attempts, 1, "a cancelled solve makes no restarts");
+    /// ```
+    pub fn solve_cancellable(
+        &self,
+        target: &Transform,
+        seed: Option<&[f64]>,
+        opts: &IkOptions,
+        cancel: &AtomicBool,
+    ) -> IkSolution {
         let n = self.dof();
         let reference: Vec<f64> = match seed {
             Some(s) => (0..n).map(|i| s.get(i).copied().unwrap_or(0.0)).collect(),
@@ -246,13 +281,13 @@ impl<'a> IkSolver<'a> {
         let mut attempts = 0;
         loop {
             attempts += 1;
-            let (done, cost) = self.attempt(target, &mut w, opts, &mut iterations);
+            let (done, cost) = self.attempt(target, &mut w, opts, cancel, &mut iterations);
             // A converged attempt wins over any lower-cost unconverged one.
             let cost = if done { f64::NEG_INFINITY } else { cost };
             if best.as_ref().is_none_or(|(_, c)| cost < *c) {
                 best = Some((w.q.clone(), cost));
             }
-            let out_of_time = opts.deadline.is_some_and(|d| Instant::now() >= d);
+            let out_of_time = stopped(opts, cancel);
             if done || attempts > opts.restarts || out_of_time {
                 break;
             }
@@ -283,6 +318,7 @@ impl<'a> IkSolver<'a> {
         target: &Transform,
         w: &mut Work,
         opts: &IkOptions,
+        cancel: &AtomicBool,
         iterations: &mut u32,
     ) -> (bool, f64) {
         self.eval(target, &w.q, opts.position_only, &mut w.cur);
@@ -292,7 +328,7 @@ impl<'a> IkSolver<'a> {
             if self.converged(&w.cur, opts) {
                 return (true, w.cur.cost);
             }
-            if opts.deadline.is_some_and(|d| Instant::now() >= d) {
+            if stopped(opts, cancel) {
                 break;
             }
             *iterations += 1;

@@ -10,6 +10,7 @@
 //! (orientation). Depends on the kinematics crate (feature `ik`), serde and
 //! the robot, joints and base/tool modules; nothing async, no protocol.
 
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use kinserve_kinematics::ik::{
@@ -473,14 +474,22 @@ impl IkRequest<'_> {
     /// `None` means no time cap: the answer is then deterministic. See
     /// [`Robot::check_ik`] for an example.
     pub fn solve(&self, deadline: Option<Instant>) -> IkAnswer {
+        self.solve_cancellable(deadline, &AtomicBool::new(false))
+    }
+
+    /// [`IkRequest::solve`] that also gives up, as at the deadline, once
+    /// `cancel` is set (by another thread: the client left).
+    pub fn solve_cancellable(&self, deadline: Option<Instant>, cancel: &AtomicBool) -> IkAnswer {
         let opts = IkOptions {
             deadline,
             ..self.options
         };
-        let s = self
-            .robot
-            .solver()
-            .solve(&self.target.pose, self.seed.as_deref(), &opts);
+        let s = self.robot.solver().solve_cancellable(
+            &self.target.pose,
+            self.seed.as_deref(),
+            &opts,
+            cancel,
+        );
         self.robot.answer(s, &self.target, self.angle_unit)
     }
 }
@@ -502,6 +511,18 @@ impl IkBatch<'_> {
     /// remaining targets are answered from their start configuration
     /// (not converged, 0 iterations, unless the start already fits).
     pub fn solve(&self, per_target: Duration, deadline: Instant) -> Vec<IkAnswer> {
+        self.solve_cancellable(per_target, deadline, &AtomicBool::new(false))
+    }
+
+    /// [`IkBatch::solve`] that also stops, as at the deadline, once `cancel`
+    /// is set: the target being solved gives up within one iteration and the
+    /// rest are answered from their start configuration.
+    pub fn solve_cancellable(
+        &self,
+        per_target: Duration,
+        deadline: Instant,
+        cancel: &AtomicBool,
+    ) -> Vec<IkAnswer> {
         let solver = self.robot.solver();
         let mut seed = self.seed.clone();
         self.targets
@@ -512,7 +533,7 @@ impl IkBatch<'_> {
                     deadline: Some((now + per_target).min(deadline)),
                     ..self.options
                 };
-                let s = solver.solve(&t.pose, seed.as_deref(), &opts);
+                let s = solver.solve_cancellable(&t.pose, seed.as_deref(), &opts, cancel);
                 if s.converged {
                     seed = Some(s.q.clone());
                 }

@@ -41,7 +41,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::ListRobotsRequest>,
     ) -> Result<Response<pb::ListRobotsResponse>, Status> {
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let size = u32::try_from(req.page_size).map_err(|_| {
             Error::malformed_field(
@@ -70,7 +70,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::GetRobotRequest>,
     ) -> Result<Response<pb::GetRobotResponse>, Status> {
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let entry = self.service.robot(&req.get_ref().name)?;
         Ok(Response::new(pb::GetRobotResponse {
             robot: Some(pb::Robot::from(entry.robot.spec())),
@@ -84,7 +84,7 @@ impl KinematicsService for GrpcService {
         req: Request<pb::RegisterRobotRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
         self.service.authorize_header(authorization(&req)?)?;
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let robot = req
             .robot
@@ -119,7 +119,7 @@ impl KinematicsService for GrpcService {
         req: Request<pb::DeleteRobotRequest>,
     ) -> Result<Response<pb::DeleteRobotResponse>, Status> {
         self.service.authorize_header(authorization(&req)?)?;
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let cond = match req.etag.as_str() {
             "" => Condition::Any,
@@ -133,7 +133,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::ForwardKinematicsRequest>,
     ) -> Result<Response<pb::ForwardKinematicsResponse>, Status> {
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let spec = FkSpec::try_from(req).map_err(Error::from)?;
@@ -166,12 +166,15 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::ForwardKinematicsBatchRequest>,
     ) -> Result<Response<pb::ForwardKinematicsBatchResponse>, Status> {
-        let _permit = self.admit()?;
+        let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         self.service.check_batch_size(req.configurations.len())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let spec = FkBatchSpec::try_from(req).map_err(Error::from)?;
-        let poses = self.service.fk_batch(&entry.robot, &spec)?;
+        let (poses, spec) = self
+            .service
+            .fk_batch_on_pool(client, entry.clone(), spec)
+            .await?;
         entry.count_poses(Protocol::Grpc, poses.len() as u64);
         let packed_poses = packed_to_pb(spec.pose_format, poses.iter());
         let poses = match packed_poses {
@@ -193,9 +196,10 @@ impl KinematicsService for GrpcService {
         req: Request<Streaming<pb::StreamForwardKinematicsRequest>>,
     ) -> Result<Response<Self::StreamForwardKinematicsStream>, Status> {
         let connection = req.extensions().get::<streams::GrpcConnInfo>().cloned();
+        let client = self.client(&req);
         let permit = self
             .streams
-            .try_open(connection.as_ref().map(|c| &c.streams))
+            .try_open(connection.as_ref().map(|c| &c.streams), client)
             .map_err(|e| {
                 metrics::counter!("kinserve_grpc_rejected_total", "reason" => "streams")
                     .increment(1);
@@ -208,7 +212,7 @@ impl KinematicsService for GrpcService {
             // The stream's budget slot, never a request permit: open streams
             // do not take from the requests in flight.
             let stream = StreamGuard::open(Protocol::Grpc);
-            let end = this.pump(inbound, &replies).await;
+            let end = this.pump(inbound, &replies, client).await;
             drop((permit, stream));
             match end {
                 End::Quiet => {}
@@ -228,7 +232,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::JacobianRequest>,
     ) -> Result<Response<pb::JacobianResponse>, Status> {
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let spec = JacobianSpec::try_from(req).map_err(Error::from)?;
@@ -245,12 +249,15 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::JacobianBatchRequest>,
     ) -> Result<Response<pb::JacobianBatchResponse>, Status> {
-        let _permit = self.admit()?;
+        let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         self.service.check_batch_size(req.configurations.len())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let spec = JacobianBatchSpec::try_from(req).map_err(Error::from)?;
-        let answers = self.service.jacobian_batch(&entry.robot, &spec)?;
+        let answers = self
+            .service
+            .jacobian_batch_on_pool(client, entry.clone(), spec)
+            .await?;
         entry.count_poses(Protocol::Grpc, answers.len() as u64);
         Ok(Response::new(pb::JacobianBatchResponse {
             robot: entry.robot.name().to_string(),
@@ -263,13 +270,13 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::InverseKinematicsRequest>,
     ) -> Result<Response<pb::InverseKinematicsResponse>, Status> {
-        let _permit = self.admit()?;
+        let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let (robot, length_unit) = names(&entry);
         let spec = IkSpec::try_from(req).map_err(Error::from)?;
         let angle_unit = pb::AngleUnit::from(spec.angle_unit) as i32;
-        let answer = self.service.ik_blocking(entry, spec).await?;
+        let answer = self.service.ik_on_pool(client, entry, spec).await?;
         Ok(Response::new(pb::InverseKinematicsResponse {
             robot,
             length_unit,
@@ -282,13 +289,13 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::InverseKinematicsBatchRequest>,
     ) -> Result<Response<pb::InverseKinematicsBatchResponse>, Status> {
-        let _permit = self.admit()?;
+        let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let (robot, length_unit) = names(&entry);
         let spec = IkBatchSpec::try_from(req).map_err(Error::from)?;
         let angle_unit = pb::AngleUnit::from(spec.angle_unit) as i32;
-        let answers = self.service.ik_batch_blocking(entry, spec).await?;
+        let answers = self.service.ik_batch_on_pool(client, entry, spec).await?;
         Ok(Response::new(pb::InverseKinematicsBatchResponse {
             robot,
             length_unit,
@@ -304,7 +311,7 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::LinkTransformsRequest>,
     ) -> Result<Response<pb::LinkTransformsResponse>, Status> {
-        let _permit = self.admit()?;
+        let (_, _permit) = self.admit(&req)?;
         let req = req.into_inner();
         let entry = self.service.robot_at(&req.robot, "robot")?;
         let spec = LinkTransformsSpec::try_from(req).map_err(Error::from)?;
@@ -321,18 +328,22 @@ impl KinematicsService for GrpcService {
         &self,
         req: Request<pb::GetClosedFormRequest>,
     ) -> Result<Response<pb::GetClosedFormResponse>, Status> {
-        let _permit = self.admit()?;
-        let cf = self.service.closed_form(&req.get_ref().robot)?;
-        Ok(Response::new(pb::GetClosedFormResponse::from(cf)))
+        let (client, _permit) = self.admit(&req)?;
+        let cf = self
+            .service
+            .closed_form(client, &req.get_ref().robot)
+            .await?;
+        let cf = cf.as_ref().as_ref().map_err(|e| Error::from(e.clone()))?;
+        Ok(Response::new(pb::GetClosedFormResponse::from(cf.clone())))
     }
 
     async fn get_urdf(
         &self,
         req: Request<pb::GetUrdfRequest>,
     ) -> Result<Response<pb::GetUrdfResponse>, Status> {
-        let _permit = self.admit()?;
+        let (client, _permit) = self.admit(&req)?;
         let robot = req.into_inner().robot;
-        let urdf = self.service.urdf(&robot)?;
+        let urdf = self.service.urdf(client, &robot).await?;
         Ok(Response::new(pb::GetUrdfResponse { robot, urdf }))
     }
 }

@@ -19,11 +19,11 @@ mod streams;
 use std::sync::Arc;
 use std::time::Duration;
 
-use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 use tonic::{Request, Status};
 
 use crate::api::budget::StreamBudget;
+use crate::compute::{ClientId, FairBudget, FairPermit};
 use crate::error::Error;
 use crate::service::Service;
 
@@ -41,8 +41,14 @@ pub struct GrpcSettings {
     /// A stream that makes no progress in either direction (no message from
     /// the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
+    /// A stream whose client has sent no message this long after it opened
+    /// is closed (at most the idle timeout).
+    pub stream_first_message_timeout: Duration,
     /// One access-log line per call (target `kinserve::access`).
     pub access_log: bool,
+    /// Whether the last `x-forwarded-for` metadata address names the client
+    /// (the peer is the operator's proxy).
+    pub trust_forwarded_for: bool,
 }
 
 /// The gRPC service over the shared [`Service`].
@@ -50,7 +56,7 @@ pub struct GrpcSettings {
 pub struct GrpcService {
     service: Arc<Service>,
     settings: Arc<GrpcSettings>,
-    permits: Arc<Semaphore>,
+    permits: FairBudget,
     streams: StreamBudget,
     shutdown: CancellationToken,
 }
@@ -70,11 +76,31 @@ fn authorization<T>(req: &Request<T>) -> Result<Option<&str>, Error> {
 }
 
 impl GrpcService {
-    fn admit(&self) -> Result<OwnedSemaphorePermit, Status> {
-        self.permits.clone().try_acquire_owned().map_err(|_| {
+    /// The call's client and one of its request permits, or
+    /// `RESOURCE_EXHAUSTED` at once when none is free.
+    fn admit<T>(&self, req: &Request<T>) -> Result<(ClientId, FairPermit), Status> {
+        let client = self.client(req);
+        let permit = self.permits.try_acquire(client).map_err(|e| {
             metrics::counter!("kinserve_grpc_rejected_total", "reason" => "overloaded")
                 .increment(1);
-            Status::from(Error::Overloaded)
-        })
+            Status::from(e)
+        })?;
+        Ok((client, permit))
+    }
+
+    /// The call's client: the connection's peer, or the last
+    /// `x-forwarded-for` address behind a trusted proxy.
+    fn client<T>(&self, req: &Request<T>) -> ClientId {
+        let peer = req
+            .extensions()
+            .get::<streams::GrpcConnInfo>()
+            .and_then(|c| c.peer);
+        let forwarded = req
+            .metadata()
+            .get_all("x-forwarded-for")
+            .iter()
+            .next_back()
+            .and_then(|v| v.to_str().ok());
+        ClientId::resolve(peer, forwarded, self.settings.trust_forwarded_for)
     }
 }

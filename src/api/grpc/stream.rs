@@ -13,6 +13,7 @@ use tokio_util::sync::CancellationToken;
 use tonic::{Status, Streaming};
 
 use super::{GrpcService, oversize, pb, status, streams};
+use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::StreamOp;
 use crate::service::StreamAnswer;
@@ -26,9 +27,10 @@ impl GrpcService {
     async fn stream_reply(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
+        client: ClientId,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let id = msg.id;
-        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg))
+        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg, client))
             .catch_unwind()
             .await
             .map_err(|panic| {
@@ -52,11 +54,15 @@ impl GrpcService {
     async fn stream_answer(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
+        client: ClientId,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let entry = self.service.robot_at(&msg.robot, "robot")?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
-        let answer = self.service.stream_step(entry, op, Protocol::Grpc).await?;
+        let answer = self
+            .service
+            .stream_step(entry, op, Protocol::Grpc, client)
+            .await?;
         Ok(stream_response(answer, unit))
     }
 }
@@ -124,6 +130,7 @@ impl GrpcService {
         &self,
         mut inbound: Streaming<pb::StreamForwardKinematicsRequest>,
         replies: &streams::Replies<pb::StreamForwardKinematicsResponse>,
+        client: ClientId,
     ) -> End {
         let idle = self.settings.stream_idle_timeout;
         let idle_status = || {
@@ -131,6 +138,8 @@ impl GrpcService {
                 "stream idle timeout: no message from the client and no reply taken for {idle:?}"
             ))
         };
+        // Until the first message, the (shorter) first-message timeout.
+        let mut wait = idle.min(self.settings.stream_first_message_timeout);
         loop {
             if self.shutdown.is_cancelled() {
                 return End::Closed(Status::unavailable("server shutting down"));
@@ -144,9 +153,10 @@ impl GrpcService {
                 None => tokio::select! {
                     _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
                     _ = replies.closed() => return End::Quiet, // client cancelled
-                    r = tokio::time::timeout(idle, inbound.message()) => r,
+                    r = tokio::time::timeout(wait, inbound.message()) => r,
                 },
             };
+            wait = idle;
             let msg = match next {
                 Err(_) => return End::Closed(idle_status()),
                 Ok(Ok(Some(m))) => m,
@@ -157,7 +167,7 @@ impl GrpcService {
             };
             // A bug (panic) while answering ends the stream with INTERNAL, not
             // with a clean end of stream the client would take for success.
-            let resp = match self.stream_reply(msg).await {
+            let resp = match self.stream_reply(msg, client).await {
                 Ok(resp) => resp,
                 Err(e) => return End::Status(Status::from(e)),
             };

@@ -70,6 +70,8 @@ pub struct GrpcConnInfo {
     pub streams: ConnectionStreams,
     /// Cancelling it closes the connection.
     pub close: CancellationToken,
+    /// The peer's address (for the per-client shares).
+    pub peer: Option<std::net::IpAddr>,
 }
 
 /// An accepted gRPC connection: the TCP stream, the streams open on it, and
@@ -86,7 +88,10 @@ impl GrpcConn {
     /// A newly accepted connection (TCP_NODELAY set) holding `slot`.
     pub fn new(tcp: TcpStream, slot: OwnedSemaphorePermit) -> GrpcConn {
         let _ = tcp.set_nodelay(true);
-        let info = GrpcConnInfo::default();
+        let info = GrpcConnInfo {
+            peer: tcp.peer_addr().ok().map(|a| a.ip()),
+            ..GrpcConnInfo::default()
+        };
         let closed = Box::pin(info.close.clone().cancelled_owned());
         GrpcConn {
             tcp,

@@ -17,11 +17,11 @@ pub struct RestBudgets {
     pub request: ByteBudget,
     /// Response bodies not yet handed to the connection.
     pub response: ByteBudget,
-    /// Batch requests computed at once (the others wait, within the request
-    /// timeout): a batch's working memory is several times its answer, more
-    /// batches at once than cores only adds memory, not speed, and batches
-    /// that occupy every runtime worker stall all other connections.
-    pub batch_slots: std::sync::Arc<tokio::sync::Semaphore>,
+    /// Batch requests under way at once (the others wait, within the
+    /// request timeout; a client holding its share is refused at once): a
+    /// batch's working memory is several times its answer, and more batches
+    /// at once than cores only adds memory, not speed.
+    pub batch_slots: crate::compute::FairBudget,
 }
 
 #[cfg(test)]

@@ -11,8 +11,9 @@ use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
-use super::extract::RobotName;
+use super::extract::{Client, RobotName};
 use super::problem::{ApiError, Problem};
+use crate::error::Error;
 use crate::model::ClosedForm;
 
 /// The closed form of `planar_2dof` as served (the OpenAPI example).
@@ -50,8 +51,13 @@ fn planar_closed_form() -> serde_json::Value {
 pub async fn closed_form(
     State(state): State<AppState>,
     RobotName(name): RobotName,
-) -> Result<Json<ClosedForm>, ApiError> {
-    Ok(Json(state.service.closed_form(&name)?))
+    Client(client): Client,
+) -> Result<Response, ApiError> {
+    let cf = state.service.closed_form(client, &name).await?;
+    match cf.as_ref() {
+        Ok(cf) => Ok(Json(cf).into_response()),
+        Err(e) => Err(Error::from(e.clone()).into()),
+    }
 }
 
 /// The robot as a URDF document (`application/xml`): root link `world`, the
@@ -71,8 +77,9 @@ pub async fn closed_form(
 pub async fn urdf(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
 ) -> Result<Response, ApiError> {
-    let xml = state.service.urdf(&name)?;
+    let xml = state.service.urdf(client, &name).await?;
     Ok((
         [(
             header::CONTENT_TYPE,

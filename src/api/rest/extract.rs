@@ -8,6 +8,7 @@ use serde::de::DeserializeOwned;
 
 use super::AppState;
 use super::problem::ApiError;
+use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::parse_json;
 
@@ -122,3 +123,26 @@ impl FromRequestParts<AppState> for RobotName {
         Ok(RobotName(name))
     }
 }
+
+/// The request's client, for the per-client shares: what [`super::admit`]
+/// resolved from the peer address (and `X-Forwarded-For` behind a trusted
+/// proxy); [`ClientId::UNKNOWN`] when the transport gave no address.
+pub struct Client(pub ClientId);
+
+impl<S: Send + Sync> FromRequestParts<S> for Client {
+    type Rejection = std::convert::Infallible;
+
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Self::Rejection> {
+        Ok(Client(
+            parts
+                .extensions
+                .get::<ClientId>()
+                .copied()
+                .unwrap_or(ClientId::UNKNOWN),
+        ))
+    }
+}
+
+/// The peer address of a connection, put in every request's extensions by the transport.
+#[derive(Clone, Copy, Debug)]
+pub struct PeerAddr(pub std::net::SocketAddr);

@@ -9,7 +9,7 @@ use super::AppState;
 use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
 use super::dto::{LinkTransformItem, LinkTransformsOutput, LinkTransformsRequest};
 use super::dto::{ListParams, Readiness, StoreState};
-use super::extract::{JsonBody, RobotName};
+use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
 use crate::error::Error;
@@ -329,12 +329,15 @@ fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
 pub async fn fk_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     JsonBody(req): JsonBody<FkBatchRequest>,
 ) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
+    let (poses, spec) = state
+        .service
+        .fk_batch_on_pool(client, entry.clone(), FkBatchSpec::from(req))
+        .await?;
     let robot = &entry.robot;
-    let spec = FkBatchSpec::from(req);
-    let poses = state.service.fk_batch(robot, &spec)?;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
     // Large answers are written a frame at a time as the connection takes them.
     Ok(super::streamed::batch_answer(

@@ -6,7 +6,7 @@ use axum::Json;
 use axum::extract::State;
 
 use super::AppState;
-use super::extract::{JsonBody, RobotName};
+use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::ik::{IkBatchOutput, IkItem, IkOutput};
 use crate::model::{IkBatchSpec, IkSpec};
@@ -54,11 +54,12 @@ type ApiResult<T> = Result<T, ApiError>;
 pub async fn ik(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     JsonBody(req): JsonBody<IkSpec>,
 ) -> ApiResult<Json<IkOutput>> {
     let entry = state.service.robot(&name)?;
     let angle_unit = req.angle_unit;
-    let answer = state.service.ik_blocking(entry.clone(), req).await?;
+    let answer = state.service.ik_on_pool(client, entry.clone(), req).await?;
     Ok(Json(IkOutput {
         robot: entry.robot.name().to_string(),
         length_unit: entry.robot.length_unit(),
@@ -106,11 +107,15 @@ pub async fn ik(
 pub async fn ik_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     JsonBody(req): JsonBody<IkBatchSpec>,
 ) -> ApiResult<Json<IkBatchOutput>> {
     let entry = state.service.robot(&name)?;
     let angle_unit = req.angle_unit;
-    let answers = state.service.ik_batch_blocking(entry.clone(), req).await?;
+    let answers = state
+        .service
+        .ik_batch_on_pool(client, entry.clone(), req)
+        .await?;
     Ok(Json(IkBatchOutput {
         robot: entry.robot.name().to_string(),
         length_unit: entry.robot.length_unit(),

@@ -7,7 +7,7 @@ use axum::extract::State;
 
 use super::AppState;
 use super::dto::{JacobianBatchRequest, JacobianRequest};
-use super::extract::{JsonBody, RobotName};
+use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::jacobian::{JacobianBatchOutput, JacobianItem, JacobianOutput};
 use crate::model::{JacobianBatchSpec, JacobianSpec};
@@ -87,13 +87,15 @@ pub async fn jacobian(
 pub async fn jacobian_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     JsonBody(req): JsonBody<JacobianBatchRequest>,
 ) -> ApiResult<Json<JacobianBatchOutput>> {
     let entry = state.service.robot(&name)?;
-    let robot = &entry.robot;
     let answers = state
         .service
-        .jacobian_batch(robot, &JacobianBatchSpec::from(req))?;
+        .jacobian_batch_on_pool(client, entry.clone(), JacobianBatchSpec::from(req))
+        .await?;
+    let robot = &entry.robot;
     Ok(Json(JacobianBatchOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),

@@ -27,7 +27,6 @@ use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use metrics::SharedString;
 use metrics_exporter_prometheus::PrometheusHandle;
-use tokio::sync::Semaphore;
 use tokio_util::sync::CancellationToken;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::cors::{AllowOrigin, Any, CorsLayer};
@@ -44,8 +43,10 @@ pub use dto::{
     LinkTransformsOutput, LinkTransformsRequest, RobotList, RobotSummaryDto, WsRequest,
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
+pub use extract::{Client, PeerAddr};
 pub use problem::{ApiError, Problem, ProblemField};
 
+use crate::compute::{ClientId, FairBudget, share_of};
 use crate::error::Error;
 use crate::service::Service;
 
@@ -64,7 +65,13 @@ impl AppState {
         let budgets = RestBudgets {
             request: inner.request_bytes.clone(),
             response: ByteBudget::new(inner.settings.max_buffered_response_bytes),
-            batch_slots: Arc::new(Semaphore::new(inner.settings.max_concurrent_batches.max(1))),
+            batch_slots: FairBudget::new(
+                inner.settings.max_concurrent_batches,
+                share_of(
+                    inner.settings.max_concurrent_batches,
+                    inner.settings.client_share_percent,
+                ),
+            ),
         };
         AppState(Arc::new(Shared { inner, budgets }))
     }
@@ -96,11 +103,20 @@ pub struct RestSettings {
     pub body_timeout: Duration,
     /// Most bytes of (large) answers waiting to be written at once (503 past it).
     pub max_buffered_response_bytes: usize,
-    /// Most batch requests (`…/batch`) computed at once; more wait their turn.
+    /// Most batch requests (`…/batch`) under way at once; more wait their
+    /// turn, except that a client holding its share is refused at once.
     pub max_concurrent_batches: usize,
+    /// Percent of every budget one client may hold.
+    pub client_share_percent: u8,
+    /// Whether the last `X-Forwarded-For` address names the client (the
+    /// peer is the operator's proxy).
+    pub trust_forwarded_for: bool,
     /// A WebSocket that makes no progress in either direction (no data
     /// message from the client, no reply taken by it) for this long is closed.
     pub stream_idle_timeout: Duration,
+    /// A WebSocket whose client has sent no data message this long after
+    /// the upgrade is closed (at most the idle timeout).
+    pub stream_first_message_timeout: Duration,
     /// Allowed CORS origins; empty: any origin.
     pub cors_origins: Vec<String>,
     /// One access-log line per request (target `kinserve::access`).
@@ -117,8 +133,8 @@ pub struct AppInner {
     pub shutdown: CancellationToken,
     /// Prometheus exposition.
     pub metrics: PrometheusHandle,
-    /// Admission control: one permit per request in flight.
-    pub permits: Arc<Semaphore>,
+    /// Admission control: one permit per request in flight, a share per client.
+    pub permits: FairBudget,
     /// Open WebSockets (shared with gRPC streams); a WebSocket holds a slot, not a request permit.
     pub streams: crate::api::budget::StreamBudget,
     /// Request bytes buffered at once (bodies read before a permit), one
@@ -283,13 +299,17 @@ async fn admit(
     mut req: Request,
     next: Next,
 ) -> Response {
+    // Deadlines count from the request's arrival, body read included.
+    let deadline = tokio::time::Instant::now() + state.settings.request_timeout;
+    let client = client_of(&req, state.settings.trust_forwarded_for);
     req.extensions_mut().insert(admission);
+    req.extensions_mut().insert(client);
     let conn = req.extensions().get::<Arc<ConnActivity>>().cloned();
     let (req, body_bytes) = match buffered::read_body(req, &state, admission).await {
         Ok(read) => read,
         Err(refusal) => return refusal,
     };
-    let Ok(_permit) = state.permits.clone().try_acquire_owned() else {
+    let Ok(_permit) = state.permits.try_acquire(client) else {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
         // A body read ahead is not left unread: the connection can be kept.
         return refuse_unread(
@@ -300,18 +320,17 @@ async fn admit(
     let _body_bytes = body_bytes;
     let run = async {
         let _slot = match admission {
-            Admission::Batch => state
-                .budgets()
-                .batch_slots
-                .clone()
-                .acquire_owned()
-                .await
-                .ok(),
+            Admission::Batch => match state.budgets().batch_slots.acquire(client).await {
+                Ok(slot) => Some(slot),
+                Err(e) => return ApiError(e).into_response(),
+            },
             Admission::Single => None,
         };
         next.run(req).await
     };
-    let resp = match tokio::time::timeout(state.settings.request_timeout, run).await {
+    // Past the deadline the handler is dropped: work on the compute pool sees
+    // its cancel flag and stops.
+    let resp = match tokio::time::timeout_at(deadline, run).await {
         Ok(resp) => resp,
         Err(_) => ApiError(Error::Unavailable {
             detail: "request timed out".into(),
@@ -319,6 +338,19 @@ async fn admit(
         .into_response(),
     };
     buffered::hold_response(resp, &state, conn)
+}
+
+/// The client of a request: its connection's peer, or the last
+/// `X-Forwarded-For` address when the peer is a trusted proxy.
+fn client_of(req: &Request, trust_forwarded_for: bool) -> ClientId {
+    let peer = req.extensions().get::<PeerAddr>().map(|p| p.0.ip());
+    let forwarded = req
+        .headers()
+        .get_all("x-forwarded-for")
+        .iter()
+        .next_back()
+        .and_then(|v| v.to_str().ok());
+    ClientId::resolve(peer, forwarded, trust_forwarded_for)
 }
 
 /// The route label of a request: the template of the route it matched

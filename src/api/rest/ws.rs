@@ -14,10 +14,11 @@ use tokio::time::Instant;
 
 use super::AppState;
 use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
-use super::extract::{RobotName, parse_object};
+use super::extract::{Client, RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
 use crate::api::pose_format::PoseFormat;
+use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{LengthUnit, StreamOp};
 use crate::service::StreamAnswer;
@@ -67,6 +68,7 @@ const WRITE_BUFFER: usize = 8 << 10;
 pub async fn stream(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     headers: axum::http::HeaderMap,
     connection: Option<Extension<ConnectionStreams>>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
@@ -97,7 +99,7 @@ pub async fn stream(
     // client gets 503 + Retry-After, not a socket that closes at once.
     let permit = state
         .streams
-        .try_open(connection.as_ref().map(|Extension(c)| c))
+        .try_open(connection.as_ref().map(|Extension(c)| c), client)
         .inspect_err(|_| {
             metrics::counter!("kinserve_http_rejected_total", "reason" => "streams").increment(1);
         })?;
@@ -110,7 +112,7 @@ pub async fn stream(
         .max_write_buffer_size(WRITE_BUFFER + 2 * max + (1 << 20))
         .max_message_size(max)
         .max_frame_size(max)
-        .on_upgrade(move |socket| run(socket, state, name, permit)))
+        .on_upgrade(move |socket| run(socket, state, Target { name, client }, permit)))
 }
 
 /// Sends a close frame, if the client takes it within [`CLOSE_TIMEOUT`].
@@ -144,9 +146,16 @@ enum Step {
     End,
 }
 
-async fn step(state: &AppState, name: &str, msg: Message) -> Step {
+/// What a socket streams for: the robot and the client (whose share of the
+/// compute pool its IK messages take).
+struct Target {
+    name: String,
+    client: ClientId,
+}
+
+async fn step(state: &AppState, target: &Target, msg: Message) -> Step {
     match msg {
-        Message::Text(t) => Step::Reply(answer(state, name, t.as_bytes()).await),
+        Message::Text(t) => Step::Reply(answer(state, target, t.as_bytes()).await),
         Message::Binary(_) => Step::Reply(error_reply(
             &serde_json::Value::Null,
             &Error::UnsupportedMediaType {
@@ -158,14 +167,15 @@ async fn step(state: &AppState, name: &str, msg: Message) -> Step {
     }
 }
 
-async fn run(mut socket: WebSocket, state: AppState, name: String, permit: StreamPermit) {
+async fn run(mut socket: WebSocket, state: AppState, target: Target, permit: StreamPermit) {
     let _permit = permit;
     let _stream = StreamGuard::open(Protocol::WebSocket);
     let shutdown = state.shutdown.clone();
     let idle = state.settings.stream_idle_timeout;
     // Progress in either direction (a data message from the client, replies
-    // taken by it) moves the deadline; pings and pongs do not.
-    let mut deadline = Instant::now() + idle;
+    // taken by it) moves the deadline; pings and pongs do not. A socket that
+    // sends nothing at first is closed after the (shorter) first-message timeout.
+    let mut deadline = Instant::now() + idle.min(state.settings.stream_first_message_timeout);
     loop {
         let first = tokio::select! {
             _ = shutdown.cancelled() => {
@@ -189,7 +199,7 @@ async fn run(mut socket: WebSocket, state: AppState, name: String, permit: Strea
             Message::Ping(_) | Message::Pong(_) => deadline,
             _ => Instant::now() + idle,
         };
-        match answer_pending(&mut socket, &state, &name, first, send_by).await {
+        match answer_pending(&mut socket, &state, &target, first, send_by).await {
             Some(true) => deadline = Instant::now() + idle,
             Some(false) => {}
             None => return,
@@ -205,14 +215,14 @@ async fn run(mut socket: WebSocket, state: AppState, name: String, permit: Strea
 async fn answer_pending(
     socket: &mut WebSocket,
     state: &AppState,
-    name: &str,
+    target: &Target,
     first: Message,
     send_by: Instant,
 ) -> Option<bool> {
     let mut replied = false;
     let mut next = Some(first);
     while let Some(msg) = next.take() {
-        match step(state, name, msg).await {
+        match step(state, target, msg).await {
             Step::Reply(reply) => {
                 replied = true;
                 let fed =
@@ -254,7 +264,7 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
 /// The reply to one text message: parsed into the protocol-neutral
 /// [`StreamOp`], answered by [`Service::stream_step`](crate::service::Service::stream_step)
 /// (the same step as the gRPC stream's), written as JSON.
-async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
+async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
     let mut req: WsRequest = match parse_object(bytes) {
         Ok(r) => r,
         Err(e) => {
@@ -269,14 +279,14 @@ async fn answer(state: &AppState, name: &str, bytes: &[u8]) -> String {
         Ok(op) => op,
         Err(e) => return error_reply(&id, &e.into()),
     };
-    let entry = match state.service.robot(name) {
+    let entry = match state.service.robot(&target.name) {
         Ok(e) => e,
         Err(e) => return error_reply(&id, &e),
     };
     let length_unit = entry.robot.length_unit();
     match state
         .service
-        .stream_step(entry, op, Protocol::WebSocket)
+        .stream_step(entry, op, Protocol::WebSocket, target.client)
         .await
     {
         Ok(answer) => {

@@ -20,6 +20,7 @@ pub(crate) mod postgres;
 pub(crate) mod process;
 pub(crate) mod raw;
 pub(crate) mod readme;
+pub(crate) mod witness;
 pub(crate) mod ws;
 
 pub(crate) use app::*;
@@ -36,4 +37,5 @@ pub(crate) use postgres::*;
 pub(crate) use process::*;
 pub(crate) use raw::*;
 pub(crate) use readme::*;
+pub(crate) use witness::*;
 pub(crate) use ws::*;

@@ -12,6 +12,7 @@
 mod auth;
 mod corpus_grpc;
 mod corpus_http;
+mod cpu;
 mod http_budgets;
 mod overload;
 mod streams;

@@ -45,6 +45,15 @@ fn fk_stream_message(id: u64) -> pb::StreamForwardKinematicsRequest {
     }
 }
 
+/// Settings for tests of the total budgets with one client (every socket
+/// from 127.0.0.1): its share is the whole budget, and silent sockets stay
+/// open (the per-client shares and the first-message timeout are tested in
+/// `cpu.rs`).
+const ONE_CLIENT: [(&str, &str); 2] = [
+    ("KINSERVE_CLIENT_SHARE_PERCENT", "100"),
+    ("KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", "300s"),
+];
+
 /// Opens `n` FK streams on one HTTP/2 connection whose receive window is
 /// closed (0): each sends `messages` requests and never reads a reply.
 /// Returns once every stream has its answer head.
@@ -149,7 +158,8 @@ fn assert_memory_bounded(server: &Server, what: &str) -> (f64, f64) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
     let dir = tempfile::tempdir().unwrap();
-    let server = start_server(dir.path(), &[], None).await;
+    // One client here: its share is the whole budget (`cpu.rs` tests the shares).
+    let server = start_server(dir.path(), &ONE_CLIENT, None).await;
     let checker = Checker::start(&server.http, &server.grpc, &server.ws()).await;
     let mut held = Vec::new();
     let mut refused = 0;
@@ -270,6 +280,7 @@ async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
     let app = spawn_app_with(|c| {
         c.stream_idle_timeout = Duration::from_secs(3);
         c.max_streams = 2;
+        c.client_share_percent = 100;
     })
     .await;
     let checker = Checker::start(&app.http, &app.grpc, &app.ws).await;
@@ -326,7 +337,11 @@ async fn close_code(sock: &mut Ws) -> Option<u16> {
 /// a gRPC stream (the budget is shared); closing a socket frees its slot.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn websockets_past_the_stream_budget_get_503_before_the_upgrade() {
-    let app = spawn_app_with(|c| c.max_streams = 3).await;
+    let app = spawn_app_with(|c| {
+        c.max_streams = 3;
+        c.client_share_percent = 100;
+    })
+    .await;
     let checker = Checker::start(&app.http, &app.grpc, &app.ws).await;
     let first = open_ws(&app, "puma560").await;
     let _second = open_ws(&app, "puma560").await;
@@ -452,7 +467,11 @@ async fn a_ping_only_websocket_is_closed_at_the_idle_timeout() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn two_thousand_idle_websockets_cost_little_memory() {
     let dir = tempfile::tempdir().unwrap();
-    let env = [("KINSERVE_MAX_STREAMS", "2100")];
+    let env = [
+        ("KINSERVE_MAX_STREAMS", "2100"),
+        ONE_CLIENT[0],
+        ONE_CLIENT[1],
+    ];
     let server = start_server(dir.path(), &env, None).await;
     let checker = Checker::start(&server.http, &server.grpc, &server.ws()).await;
     let (before, _) = server.memory_mib();
@@ -544,7 +563,7 @@ async fn big_grpc_messages_with_their_end_withheld_stay_within_the_byte_budget()
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn websockets_holding_unfinished_big_messages_stay_within_the_budget() {
     let dir = tempfile::tempdir().unwrap();
-    let server = start_server(dir.path(), &[], None).await;
+    let server = start_server(dir.path(), &ONE_CLIENT, None).await;
     let checker = Checker::start(&server.http, &server.grpc, &server.ws()).await;
     let url = format!("{}/v1/robots/planar_2dof/fk/stream", server.ws());
     let part = vec![b'x'; 64 << 10];

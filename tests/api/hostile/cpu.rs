@@ -1,0 +1,270 @@
+//! No client can take the CPU: the attacks of a hostile run (issue 22) from
+//! 127.0.0.1 against the binary at default settings, while a well-behaved
+//! client on 127.0.0.2 asks for FK every 50 ms and `/healthz`; every one of
+//! its answers must be correct and within 1 s, the server's peak RSS within
+//! 300 MiB, and its CPU back to idle within 2 s of the attackers leaving.
+//! Each test prints the well-behaved client's p50/p99 (SECURITY.md has them).
+
+use std::time::Duration;
+
+use kinserve::api::grpc::pb;
+use kinserve::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
+use serde_json::{Value, json};
+
+use crate::helpers::*;
+
+/// An IK target puma560 cannot reach: every target takes its whole time limit.
+fn unreachable_targets(n: usize) -> Vec<Value> {
+    (0..n)
+        .map(|_| json!({"position": [4.0, 0, 0], "quaternion": {"w": 1, "x": 0, "y": 0, "z": 0}}))
+        .collect()
+}
+
+fn unreachable_pb_targets(n: usize) -> Vec<pb::IkTarget> {
+    let target = pb::IkTarget {
+        position: Some(pb::Vector3 {
+            x: 4.0,
+            y: 0.0,
+            z: 0.0,
+        }),
+        quaternion: Some(pb::Quaternion {
+            w: 1.0,
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    vec![target; n]
+}
+
+async fn server() -> (tempfile::TempDir, Server) {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start_server(dir.path(), &[], None).await;
+    (dir, server)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn abandoned_ik_floods_are_refused_or_stopped_and_leave_the_cpu() {
+    let (_dir, server) = server().await;
+    let witness = Witness::start(&server.http);
+    // gRPC: 200 IK batches of 400 unreachable targets at once, each with a
+    // 50 ms deadline (tonic sends grpc-timeout), over 4 connections.
+    let mut calls = Vec::new();
+    for c in 0..4 {
+        let client = KinematicsServiceClient::connect(server.grpc.clone())
+            .await
+            .unwrap();
+        for _ in 0..50 {
+            let mut g = client.clone();
+            let _ = c;
+            calls.push(tokio::spawn(async move {
+                let mut req = tonic::Request::new(pb::InverseKinematicsBatchRequest {
+                    robot: "puma560".into(),
+                    targets: unreachable_pb_targets(400),
+                    ..Default::default()
+                });
+                req.set_timeout(Duration::from_millis(50));
+                g.inverse_kinematics_batch(req).await.map(|_| ())
+            }));
+        }
+    }
+    let mut codes = std::collections::BTreeMap::new();
+    for call in calls {
+        let code = match call.await.unwrap() {
+            Ok(()) => "OK".to_string(),
+            Err(s) => format!("{:?}", s.code()),
+        };
+        *codes.entry(code).or_insert(0) += 1;
+    }
+    println!("gRPC IK flood: {codes:?}");
+    assert!(
+        !codes.contains_key("OK"),
+        "no batch of unreachable targets ends in 50 ms: {codes:?}"
+    );
+    assert!(
+        !codes.contains_key("Internal") && !codes.contains_key("Unknown"),
+        "{codes:?}"
+    );
+    // REST: 150 IK batches whose clients hang up 0.1 s after sending.
+    let attacker = client_from([127, 0, 0, 1]);
+    let mut posts = Vec::new();
+    for _ in 0..150 {
+        let req = attacker
+            .post(format!("{}/v1/robots/puma560/ik/batch", server.http))
+            .json(&json!({"targets": unreachable_targets(400)}))
+            .timeout(Duration::from_millis(100));
+        posts.push(tokio::spawn(
+            async move { req.send().await.map(|r| r.status()) },
+        ));
+    }
+    for p in posts {
+        // Refused at once (503) or abandoned (the client's timeout).
+        if let Ok(status) = p.await.unwrap() {
+            assert_eq!(
+                status, 503,
+                "an IK batch of unreachable targets cannot succeed in 0.1 s"
+            );
+        }
+    }
+    assert_idle_after_attack(&server, "IK floods").await;
+    witness.finish("IK floods").await;
+    assert_memory_bounded(&server, "IK floods");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn ik_batches_of_one_client_do_not_starve_anothers_batches() {
+    let (_dir, server) = server().await;
+    let witness = Witness::start(&server.http);
+    // One client keeps 3 IK batches in flight (each runs up to 15 s) …
+    let attacker = client_from([127, 0, 0, 1]);
+    let url = format!("{}/v1/robots/puma560/ik/batch", server.http);
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut loops = Vec::new();
+    for _ in 0..3 {
+        let (attacker, url, stop) = (attacker.clone(), url.clone(), stop.clone());
+        loops.push(tokio::spawn(async move {
+            while !stop.load(std::sync::atomic::Ordering::Acquire) {
+                let sent = attacker
+                    .post(&url)
+                    .json(&json!({"targets": unreachable_targets(400)}))
+                    .timeout(Duration::from_secs(3))
+                    .send()
+                    .await;
+                if let Ok(r) = sent {
+                    assert!(r.status() == 200 || r.status() == 503, "{}", r.status());
+                }
+            }
+        }));
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    // … while another asks for 2-configuration FK batches: each answered within 1 s.
+    let other = client_from(WITNESS_ADDR);
+    let q = [[0.1, 0.2, 0.3, 0.4, 0.5, 0.6], [0.0; 6]];
+    for _ in 0..20 {
+        let start = std::time::Instant::now();
+        let r = other
+            .post(format!("{}/v1/robots/puma560/fk/batch", server.http))
+            .json(&json!({"configurations": q}))
+            .send()
+            .await
+            .unwrap();
+        let took = start.elapsed();
+        assert_eq!(r.status(), 200, "{}", r.text().await.unwrap_or_default());
+        let v: Value = r.json().await.unwrap();
+        assert_eq!(v["poses"].as_array().map(Vec::len), Some(2));
+        assert!(
+            took <= SERVED_WITHIN,
+            "an FK batch of 2 waited {took:?} behind another client's IK batches"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    stop.store(true, std::sync::atomic::Ordering::Release);
+    for l in loops {
+        l.abort();
+    }
+    assert_idle_after_attack(&server, "IK batches vs FK batches").await;
+    witness.finish("IK batches vs FK batches").await;
+    assert_memory_bounded(&server, "IK batches vs FK batches");
+}
+
+/// The closed-form attack model: 8 twisted revolute rows, then identity
+/// fixed rows up to the default link limit.
+fn costly_closed_form_model(name: &str) -> Value {
+    let mut links: Vec<Value> = (0..8)
+        .map(|i| json!({"joint": "revolute", "a": 0.1 + 0.01 * i as f64, "alpha": 17, "d": 0.05, "theta": 0}))
+        .collect();
+    links.extend(
+        (0..248).map(|_| json!({"joint": "fixed", "a": 0, "alpha": 0, "d": 0, "theta": 0})),
+    );
+    json!({"name": name, "convention": "standard", "angle_unit": "deg", "length_unit": "m", "links": links})
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn closed_forms_of_a_costly_model_do_not_stall_the_server() {
+    let (_dir, server) = server().await;
+    let attacker = client_from([127, 0, 0, 1]);
+    let r = attacker
+        .post(format!("{}/v1/robots", server.http))
+        .json(&costly_closed_form_model("twisted_tail"))
+        .send()
+        .await
+        .unwrap();
+    let registered = r.status();
+    assert!(
+        registered == 201 || registered == 422 || registered == 413,
+        "{registered}"
+    );
+    let witness = Witness::start(&server.http);
+    let mut reads = Vec::new();
+    for _ in 0..4 {
+        let req = attacker.get(format!(
+            "{}/v1/robots/twisted_tail/closed-form",
+            server.http
+        ));
+        reads.push(tokio::spawn(
+            async move { req.send().await.map(|r| r.status()) },
+        ));
+    }
+    let mut statuses = Vec::new();
+    for r in reads {
+        statuses.push(r.await.unwrap().unwrap().as_u16());
+    }
+    println!("closed form of the costly model: registration {registered}, reads {statuses:?}");
+    for s in &statuses {
+        assert!([200, 404, 413, 503].contains(s), "{statuses:?}");
+    }
+    assert_idle_after_attack(&server, "closed forms").await;
+    witness.finish("closed forms").await;
+    assert_memory_bounded(&server, "closed forms");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn one_client_cannot_hold_every_stream_and_silent_streams_close() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start_server(
+        dir.path(),
+        &[("KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", "2s")],
+        None,
+    )
+    .await;
+    let ws_url = format!("{}/v1/robots/puma560/fk/stream", server.ws());
+    // One client opens as many WebSockets as it is given (and sends nothing).
+    let mut held = Vec::new();
+    let mut refused = 0;
+    for _ in 0..80 {
+        match ws_connect_from([127, 0, 0, 1], &ws_url).await {
+            Ok(sock) => held.push(sock),
+            Err(status) => {
+                assert_eq!(status, 503);
+                refused += 1;
+            }
+        }
+    }
+    println!(
+        "streams: one client got {} of 64, {refused} refused",
+        held.len()
+    );
+    assert!(
+        held.len() <= 32,
+        "one client holds {} streams, more than half",
+        held.len()
+    );
+    // Another client still opens one and is answered.
+    let mut mine = ws_connect_from(WITNESS_ADDR, &ws_url)
+        .await
+        .expect("another client's stream opens");
+    let reply = ws_ask(&mut mine, &json!({"id": 1, "joints": [0, 0, 0, 0, 0, 0]})).await;
+    assert!(reply["pose"].is_object(), "{reply}");
+    // The silent ones are closed after the first-message timeout.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let mut closed = 0;
+    for sock in &mut held {
+        if ws_is_closed(sock).await {
+            closed += 1;
+        }
+    }
+    assert_eq!(
+        closed,
+        held.len(),
+        "silent streams are closed after the first-message timeout"
+    );
+}
