@@ -10,6 +10,7 @@ use super::dto::{JacobianBatchRequest, JacobianRequest};
 use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::jacobian::{JacobianBatchOutput, JacobianItem, JacobianOutput};
+use crate::error::Error;
 use crate::model::{JacobianBatchSpec, JacobianSpec};
 
 type ApiResult<T> = Result<T, ApiError>;
@@ -91,9 +92,15 @@ pub async fn jacobian_batch(
     JsonBody(req): JsonBody<JacobianBatchRequest>,
 ) -> ApiResult<Json<JacobianBatchOutput>> {
     let entry = state.service.robot(&name)?;
+    let spec = JacobianBatchSpec::from(req);
+    check_answer_size(
+        spec.configurations.len(),
+        entry.robot.dof(),
+        state.settings.max_buffered_response_bytes,
+    )?;
     let answers = state
         .service
-        .jacobian_batch_on_pool(client, entry.clone(), JacobianBatchSpec::from(req))
+        .jacobian_batch_on_pool(client, entry.clone(), spec)
         .await?;
     let robot = &entry.robot;
     Ok(Json(JacobianBatchOutput {
@@ -101,4 +108,30 @@ pub async fn jacobian_batch(
         length_unit: robot.length_unit(),
         results: answers.iter().map(JacobianItem::from).collect(),
     }))
+}
+
+/// Fewest bytes one Jacobian batch item takes in JSON: `6 × dof` Jacobian
+/// entries and the 16 + 3 + 4 + 3 pose numbers, at 2 bytes (`0,`) or more
+/// each, plus the field names (~150 bytes). A lower bound: what it refuses
+/// could never fit.
+fn min_item_bytes(dof: usize) -> usize {
+    (6 * dof + 26) * 2 + 150
+}
+
+/// Refuses, before computing, a Jacobian batch whose answer could not fit in
+/// the response budget (`--max-buffered-response-bytes`), which would
+/// otherwise be computed in full and then replaced by a 503.
+fn check_answer_size(configurations: usize, dof: usize, budget: usize) -> Result<(), Error> {
+    let item = min_item_bytes(dof);
+    let least = configurations.saturating_mul(item);
+    if least <= budget {
+        return Ok(());
+    }
+    Err(Error::TooLarge {
+        detail: format!(
+            "the answer would take at least {least} bytes, more than the {budget} bytes the server holds for answers (--max-buffered-response-bytes): send at most {} configurations of this robot per request",
+            budget / item
+        ),
+        field: Some("configurations".into()),
+    })
 }

@@ -268,3 +268,26 @@ async fn one_client_cannot_hold_every_stream_and_silent_streams_close() {
         "silent streams are closed after the first-message timeout"
     );
 }
+
+#[tokio::test]
+async fn a_jacobian_batch_whose_answer_cannot_fit_is_refused_before_computing() {
+    let app = spawn_app_with(|c| c.max_buffered_response_bytes = 100_000).await;
+    let body = json!({"configurations": configs(1000, 6)});
+    let start = std::time::Instant::now();
+    let p = problem(
+        app.post("/v1/robots/puma560/jacobian/batch", &body).await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&p), ["configurations"]);
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("--max-buffered-response-bytes") && detail.contains("at most"),
+        "{detail}"
+    );
+    assert!(start.elapsed() <= SERVED_WITHIN);
+    // What fits is still answered.
+    let small = json!({"configurations": configs(10, 6)});
+    let r = app.post("/v1/robots/puma560/jacobian/batch", &small).await;
+    assert_eq!(r.status(), 200);
+}
