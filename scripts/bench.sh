@@ -28,10 +28,14 @@ if [ -z "$BIN_DIR" ]; then
 fi
 formats="full matrix position"
 "$BIN_DIR/kinserve-load" --help | grep -q -- --pose-format || formats="full"
+# kinserve-load is one client with many connections: it gets every budget
+# (share 100 %), and batches queue on the batch slots as a throughput test
+# wants instead of being refused by the compute pool (64 permits).
 data=$(mktemp -d)
 log=$(mktemp)
 KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data \
-  KINSERVE_MAX_CONCURRENT_REQUESTS=4096 RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$log" &
+  KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 \
+  RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$log" &
 pid=$!
 trap 'kill $pid 2>/dev/null; wait $pid 2>/dev/null; rm -rf "$data" "$log"' EXIT
 for _ in $(seq 100); do

@@ -22,9 +22,13 @@ impl Drop for TestApp {
 /// Starts the server with the test configuration and waits until `/readyz` is 200.
 async fn spawn_app() -> TestApp {
     let tmp = tempfile::tempdir().expect("temp dir");
-    let app = App::build(ServeConfig::for_tests(tmp.path().to_path_buf()))
-        .await
-        .expect("server builds");
+    // One load generator is one client: its share is the whole of each
+    // budget here (the shares are tested in the server's hostile tests).
+    let config = ServeConfig {
+        client_share_percent: 100,
+        ..ServeConfig::for_tests(tmp.path().to_path_buf())
+    };
+    let app = App::build(config).await.expect("server builds");
     let http = format!("http://127.0.0.1:{}", app.http_port());
     let grpc = format!("http://127.0.0.1:{}", app.grpc_port());
     let shutdown = app.shutdown_handle();
