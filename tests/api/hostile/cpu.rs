@@ -291,3 +291,115 @@ async fn a_jacobian_batch_whose_answer_cannot_fit_is_refused_before_computing() 
     let r = app.post("/v1/robots/puma560/jacobian/batch", &small).await;
     assert_eq!(r.status(), 200);
 }
+
+/// A gRPC client whose connection comes from `from`.
+async fn grpc_from(from: [u8; 4], url: &str) -> KinematicsServiceClient<tonic::transport::Channel> {
+    let channel = tonic::transport::Endpoint::from_shared(url.to_owned())
+        .unwrap()
+        .local_address(Some(std::net::IpAddr::from(from)))
+        .connect()
+        .await
+        .unwrap();
+    KinematicsServiceClient::new(channel)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_client_holding_its_compute_share_is_refused_at_once_and_another_is_served() {
+    let app = spawn_app_with(|c| c.compute_threads = 2).await;
+    let attacker = grpc_from([127, 0, 0, 1], &app.grpc).await;
+    // One long IK batch takes the attacker's one permit (its share of 2) …
+    let mut busy = attacker.clone();
+    let long = tokio::spawn(async move {
+        busy.inverse_kinematics_batch(pb::InverseKinematicsBatchRequest {
+            robot: "puma560".into(),
+            targets: unreachable_pb_targets(40),
+            ..Default::default()
+        })
+        .await
+    });
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    // … so its next one is refused at once,
+    let mut again = attacker.clone();
+    let start = std::time::Instant::now();
+    let refused = again
+        .inverse_kinematics_batch(pb::InverseKinematicsBatchRequest {
+            robot: "puma560".into(),
+            targets: unreachable_pb_targets(1),
+            ..Default::default()
+        })
+        .await
+        .expect_err("over its share");
+    assert_eq!(
+        refused.code(),
+        tonic::Code::ResourceExhausted,
+        "{refused:?}"
+    );
+    assert!(
+        start.elapsed() <= SERVED_WITHIN,
+        "refused at once, not queued"
+    );
+    // … while another client's batch is computed.
+    let mut other = grpc_from(WITNESS_ADDR, &app.grpc).await;
+    let q = kinserve::api::grpc::pb::JointConfiguration {
+        joints: vec![0.1; 6],
+    };
+    let served = other
+        .forward_kinematics_batch(pb::ForwardKinematicsBatchRequest {
+            robot: "puma560".into(),
+            configurations: vec![q.clone(), q],
+            ..Default::default()
+        })
+        .await
+        .expect("another client's batch is served")
+        .into_inner();
+    assert_eq!(served.poses.len(), 2);
+    // The single FK path never waits for the pool.
+    let fk = again
+        .forward_kinematics(pb::ForwardKinematicsRequest {
+            robot: "puma560".into(),
+            joints: vec![0.0; 6],
+            ..Default::default()
+        })
+        .await;
+    assert!(fk.is_ok(), "{fk:?}");
+    long.abort();
+}
+
+#[tokio::test]
+async fn behind_a_trusted_proxy_the_forwarded_address_is_the_client() {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    async fn open(app: &TestApp, forwarded: &str) -> Result<Ws, u16> {
+        let url = format!("{}/v1/robots/puma560/fk/stream", app.ws);
+        let mut req = url.into_client_request().unwrap();
+        req.headers_mut()
+            .insert("x-forwarded-for", forwarded.parse().unwrap());
+        match tokio_tungstenite::connect_async(req).await {
+            Ok((ws, _)) => Ok(ws),
+            Err(tokio_tungstenite::tungstenite::Error::Http(r)) => Err(r.status().as_u16()),
+            Err(e) => panic!("{e}"),
+        }
+    }
+    // Two streams, one per client.
+    let trusting = spawn_app_with(|c| {
+        c.max_streams = 2;
+        c.trust_forwarded_for = true;
+    })
+    .await;
+    let _a = open(&trusting, "198.51.100.1").await.expect("first client");
+    assert_eq!(
+        open(&trusting, "203.0.113.5, 198.51.100.1").await.err(),
+        Some(503),
+        "same last hop, same client"
+    );
+    let _b = open(&trusting, "198.51.100.2")
+        .await
+        .expect("another client");
+    // Not trusted (the default): the header is ignored, every socket is the peer's.
+    let plain = spawn_app_with(|c| c.max_streams = 2).await;
+    let _c = open(&plain, "198.51.100.1").await.expect("first");
+    assert_eq!(
+        open(&plain, "198.51.100.2").await.err(),
+        Some(503),
+        "the header does not make a new client"
+    );
+}
