@@ -29,6 +29,7 @@ mod requests;
 mod robot;
 mod spec;
 mod urdf;
+mod urdf_import;
 mod velocity;
 
 pub use closed_form::{ClosedForm, JointVariable, SymbolicMatrix};
@@ -52,6 +53,7 @@ pub use spec::{
     TransformSpec,
 };
 pub use urdf::to_urdf;
+pub use urdf_import::{UrdfImport, import_urdf};
 pub use velocity::{JacobianAnswer, ReferenceFrame};
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
