@@ -219,6 +219,7 @@ impl From<ModelError> for Error {
         match e {
             ModelError::Malformed { detail, violations } => Error::Malformed { detail, violations },
             ModelError::Invalid { detail, violations } => Error::Invalid { detail, violations },
+            ModelError::TooLarge { detail, field } => Error::TooLarge { detail, field },
         }
     }
 }

@@ -117,7 +117,7 @@ async fn rest_unknown_robot_bad_name_and_too_long_closed_form_are_problems() {
     assert_eq!(r.status(), 400);
     assert_eq!(app.post("/v1/robots", &snake()).await.status(), 201);
     let r = app.get("/v1/robots/snake/closed-form").await;
-    assert_eq!(r.status(), 422);
+    assert_eq!(r.status(), 413, "past the closed-form work limit");
     let p: Value = r.json().await.unwrap();
     assert_eq!(p["errors"][0]["field"], "links", "{p}");
     assert!(p["detail"].as_str().unwrap().contains("too large"), "{p}");
@@ -272,6 +272,10 @@ async fn grpc_closed_form_errors_are_statuses() {
         })
         .await
         .unwrap_err();
-    assert_eq!(e.code(), tonic::Code::InvalidArgument);
+    assert_eq!(
+        e.code(),
+        tonic::Code::ResourceExhausted,
+        "past the work limit"
+    );
     assert_eq!(status_fields(&e), ["links"]);
 }

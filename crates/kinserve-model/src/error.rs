@@ -69,6 +69,15 @@ pub enum ModelError {
         /// One entry per offending field.
         violations: Vec<FieldViolation>,
     },
+    /// Valid input whose answer would cost more than a documented limit to
+    /// compute or to send, e.g. a closed form past its work limit (the server
+    /// answers HTTP 413, gRPC RESOURCE_EXHAUSTED).
+    TooLarge {
+        /// Which limit, its value, and what to do instead.
+        detail: String,
+        /// The field at fault (e.g. `links`).
+        field: Option<String>,
+    },
 }
 
 impl fmt::Display for ModelError {
@@ -76,6 +85,7 @@ impl fmt::Display for ModelError {
         match self {
             ModelError::Malformed { detail, .. } => write!(f, "malformed input: {detail}"),
             ModelError::Invalid { detail, .. } => write!(f, "invalid input: {detail}"),
+            ModelError::TooLarge { detail, .. } => write!(f, "too large: {detail}"),
         }
     }
 }
@@ -111,12 +121,21 @@ impl ModelError {
         }
     }
 
-    /// The field violations.
+    /// A [`ModelError::TooLarge`] blaming `field`; `detail` says which limit and what to do.
+    pub fn too_large(field: impl Into<String>, detail: impl Into<String>) -> Self {
+        ModelError::TooLarge {
+            detail: detail.into(),
+            field: Some(field.into()),
+        }
+    }
+
+    /// The field violations (none for [`ModelError::TooLarge`], whose field is its own).
     pub fn violations(&self) -> &[FieldViolation] {
         match self {
             ModelError::Malformed { violations, .. } | ModelError::Invalid { violations, .. } => {
                 violations
             }
+            ModelError::TooLarge { .. } => &[],
         }
     }
 }

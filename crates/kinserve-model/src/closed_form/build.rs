@@ -1,7 +1,13 @@
 //! From a DH table to symbolic link matrices `A_i` and their product `⁰Tₙ`:
 //! each DH parameter becomes an atom (or a folded 0/±1 for angles that are
 //! multiples of 90°, or nothing for a zero length), the matrices are multiplied
-//! out and simplified after every factor.
+//! out and simplified after every factor, within a work [`Budget`].
+//!
+//! Constant (fixed) rows are folded before they meet the product: an identity
+//! row is skipped, and a run of adjacent fixed rows is multiplied out on its
+//! own (small: constants only) and enters the product once, so neither
+//! repeats the costly step of multiplying the whole product again. Matrix
+//! products are associative, so the result is the same polynomial.
 //!
 //! Owns the link-matrix formulas of both conventions in symbolic form (the
 //! numeric ones live in `kinserve-kinematics`, which the tests compare with).
@@ -13,14 +19,11 @@ use std::f64::consts::FRAC_PI_2;
 
 use kinserve_kinematics::{Convention, DhRow, JointKind};
 
+use super::budget::{Budget, Exceeded, MAX_TERMS};
 use super::poly::{Angle, Atom, Groups, Length, Poly, Trig};
 
 /// A symbolic homogeneous 4×4 matrix, row-major.
 pub(crate) type Matrix = [[Poly; 4]; 4];
-
-/// Most terms the product may hold (all entries together) after any factor;
-/// longer closed forms are refused instead of being printed.
-pub(crate) const MAX_TERMS: usize = 20_000;
 
 /// Angles within this many radians of a multiple of 90° are folded to 0/±1.
 const FOLD_TOLERANCE: f64 = 1e-12;
@@ -29,6 +32,8 @@ const FOLD_TOLERANCE: f64 = 1e-12;
 pub(crate) struct Built {
     /// `A_1 … A_n`.
     pub(crate) links: Vec<Matrix>,
+    /// Whether `A_i` is constant (a fixed row), by index.
+    pub(crate) constant: Vec<bool>,
     /// Runs of parallel revolute axes.
     pub(crate) groups: Groups,
     /// Value of every constant atom that occurs (lengths in the table's unit,
@@ -37,36 +42,72 @@ pub(crate) struct Built {
 }
 
 /// Builds the link matrices of `rows` (1-based row numbers in the atoms).
-pub(crate) fn build(convention: Convention, rows: &[DhRow]) -> Built {
+pub(crate) fn build(convention: Convention, rows: &[DhRow]) -> Result<Built, Exceeded> {
     let mut values = BTreeMap::new();
     let links = rows
         .iter()
         .zip(1u16..)
         .map(|(row, i)| link_matrix(convention, i, row, &mut values))
-        .collect();
-    Built {
+        .collect::<Result<_, _>>()?;
+    Ok(Built {
         links,
+        constant: rows.iter().map(|r| r.kind == JointKind::Fixed).collect(),
         groups: parallel_groups(convention, rows),
         values,
+    })
+}
+
+/// `A_1 ⋯ A_n`, simplified after each factor, with identity rows skipped and
+/// each run of adjacent fixed rows multiplied out on its own first. Fails once
+/// the work would pass `budget` or the product [`MAX_TERMS`].
+pub(crate) fn product(built: &Built, budget: &mut Budget) -> Result<Matrix, Exceeded> {
+    let mut t = identity();
+    // The product of the current run of fixed rows, not yet in `t`.
+    let mut run: Option<Matrix> = None;
+    for (a, &constant) in built.links.iter().zip(&built.constant) {
+        if constant {
+            if !is_identity(a) {
+                run = Some(match run {
+                    None => a.clone(),
+                    Some(c) => fold(c, a, &built.groups, budget)?,
+                });
+            }
+            continue;
+        }
+        if let Some(c) = run.take() {
+            t = fold(t, &c, &built.groups, budget)?;
+        }
+        t = fold(t, a, &built.groups, budget)?;
+    }
+    match run {
+        Some(c) => fold(t, &c, &built.groups, budget),
+        None => Ok(t),
     }
 }
 
-/// `A_1 ⋯ A_n`, simplified after each factor; `Err(terms)` once it grows past
-/// [`MAX_TERMS`].
-pub(crate) fn product(built: &Built) -> Result<Matrix, usize> {
-    let mut t = identity();
-    for a in &built.links {
-        t = mat_mul(&t, a);
-        let mut terms = 0;
-        for entry in t.iter_mut().flatten() {
-            entry.simplify(&built.groups);
-            terms += entry.len();
-        }
-        if terms > MAX_TERMS {
-            return Err(terms);
-        }
+/// `t · a`, skipping the multiplication when either is the identity.
+fn fold(t: Matrix, a: &Matrix, groups: &Groups, budget: &mut Budget) -> Result<Matrix, Exceeded> {
+    if is_identity(a) {
+        Ok(t)
+    } else if is_identity(&t) {
+        Ok(a.clone())
+    } else {
+        step(&t, a, groups, budget)
     }
-    Ok(t)
+}
+
+/// `t · a`, simplified; fails past the budget or [`MAX_TERMS`].
+fn step(t: &Matrix, a: &Matrix, groups: &Groups, budget: &mut Budget) -> Result<Matrix, Exceeded> {
+    let mut p = mat_mul(t, a, budget)?;
+    let mut terms = 0;
+    for entry in p.iter_mut().flatten() {
+        entry.simplify(groups, budget)?;
+        terms += entry.len();
+    }
+    if terms > MAX_TERMS {
+        return Err(Exceeded::Terms { terms });
+    }
+    Ok(p)
 }
 
 /// The number of quarter turns (0–3) of `x` if it is a multiple of 90°.
@@ -79,14 +120,28 @@ fn identity() -> Matrix {
     std::array::from_fn(|i| std::array::from_fn(|j| Poly::constant(i64::from(i == j))))
 }
 
-fn mat_mul(a: &Matrix, b: &Matrix) -> Matrix {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            (0..4)
-                .filter(|&k| !a[i][k].is_zero() && !b[k][j].is_zero())
-                .fold(Poly::default(), |acc, k| acc.add(&a[i][k].mul(&b[k][j])))
-        })
-    })
+fn is_identity(m: &Matrix) -> bool {
+    *m == identity()
+}
+
+/// `a · b`, charging the term products to `budget` before any is made.
+fn mat_mul(a: &Matrix, b: &Matrix, budget: &mut Budget) -> Result<Matrix, Exceeded> {
+    let cost = (0..4)
+        .flat_map(|i| (0..4).flat_map(move |j| (0..4).map(move |k| (i, j, k))))
+        .map(|(i, j, k)| a[i][k].mul_cost(&b[k][j]))
+        .fold(0, u64::saturating_add);
+    budget.charge(cost)?;
+    let mut out: Matrix = Default::default();
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, entry) in row.iter_mut().enumerate() {
+            for k in 0..4 {
+                if !a[i][k].is_zero() && !b[k][j].is_zero() {
+                    entry.add_assign(&a[i][k].mul(&b[k][j])?)?;
+                }
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// (cos, sin) of a constant angle: folded when a multiple of 90°, else atoms.
@@ -122,7 +177,7 @@ fn link_matrix(
     i: u16,
     row: &DhRow,
     values: &mut BTreeMap<Atom, f64>,
-) -> Matrix {
+) -> Result<Matrix, Exceeded> {
     // Row i holds a_{i-1}, α_{i-1} in the modified convention.
     let prev = match convention {
         Convention::Standard => i,
@@ -142,20 +197,20 @@ fn link_matrix(
         _ => length(row.d, Length::D, i, values),
     };
     let (zero, one) = (Poly::default(), Poly::constant(1));
-    match convention {
+    Ok(match convention {
         Convention::Standard => [
-            [ct.clone(), st.mul(&ca).neg(), st.mul(&sa), a.mul(&ct)],
-            [st.clone(), ct.mul(&ca), ct.mul(&sa).neg(), a.mul(&st)],
+            [ct.clone(), st.mul(&ca)?.neg()?, st.mul(&sa)?, a.mul(&ct)?],
+            [st.clone(), ct.mul(&ca)?, ct.mul(&sa)?.neg()?, a.mul(&st)?],
             [zero.clone(), sa, ca, d],
             [zero.clone(), zero.clone(), zero, one],
         ],
         Convention::Modified => [
-            [ct.clone(), st.neg(), zero.clone(), a],
-            [st.mul(&ca), ct.mul(&ca), sa.neg(), sa.mul(&d).neg()],
-            [st.mul(&sa), ct.mul(&sa), ca.clone(), ca.mul(&d)],
+            [ct.clone(), st.neg()?, zero.clone(), a],
+            [st.mul(&ca)?, ct.mul(&ca)?, sa.neg()?, sa.mul(&d)?.neg()?],
+            [st.mul(&sa)?, ct.mul(&sa)?, ca.clone(), ca.mul(&d)?],
             [zero.clone(), zero.clone(), zero, one],
         ],
-    }
+    })
 }
 
 /// Rows `j` and `j + 1` share a group when both are revolute and the twist

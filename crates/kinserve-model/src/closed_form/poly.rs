@@ -11,6 +11,8 @@
 use std::collections::btree_map::Entry;
 use std::collections::{BTreeMap, HashMap, HashSet};
 
+use super::budget::{Budget, Exceeded};
+
 /// Cosine or sine.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub(crate) enum Trig {
@@ -60,14 +62,16 @@ impl Poly {
     /// The constant `k`.
     pub(crate) fn constant(k: i64) -> Poly {
         let mut p = Poly::default();
-        p.add_term(Vec::new(), k);
+        if k != 0 {
+            p.terms.insert(Vec::new(), k);
+        }
         p
     }
 
     /// One atom.
     pub(crate) fn atom(a: Atom) -> Poly {
         let mut p = Poly::default();
-        p.add_term(vec![a], 1);
+        p.terms.insert(vec![a], 1);
         p
     }
 
@@ -81,68 +85,110 @@ impl Poly {
         self.terms.len()
     }
 
+    /// Number of atoms over all terms (a power counts once per factor).
+    pub(crate) fn atoms(&self) -> usize {
+        self.terms.keys().map(Vec::len).sum()
+    }
+
     /// The terms in print order.
     pub(crate) fn terms(&self) -> impl Iterator<Item = (&Monomial, i64)> {
         self.terms.iter().map(|(m, k)| (m, *k))
     }
 
     /// Adds `k · m`, dropping the term if it cancels.
-    pub(crate) fn add_term(&mut self, m: Monomial, k: i64) {
+    pub(crate) fn add_term(&mut self, m: Monomial, k: i64) -> Result<(), Exceeded> {
         if k == 0 {
-            return;
+            return Ok(());
         }
         match self.terms.entry(m) {
             Entry::Occupied(mut e) => {
-                *e.get_mut() += k;
-                if *e.get() == 0 {
+                let sum = e.get().checked_add(k).ok_or(Exceeded::Coefficient)?;
+                if sum == 0 {
                     e.remove();
+                } else {
+                    *e.get_mut() = sum;
                 }
             }
             Entry::Vacant(e) => {
                 e.insert(k);
             }
         }
+        Ok(())
     }
 
-    /// `self + other`.
-    pub(crate) fn add(&self, other: &Poly) -> Poly {
-        let mut out = self.clone();
+    /// `self += other`.
+    pub(crate) fn add_assign(&mut self, other: &Poly) -> Result<(), Exceeded> {
         for (m, k) in other.terms() {
-            out.add_term(m.clone(), k);
+            self.add_term(m.clone(), k)?;
         }
-        out
+        Ok(())
     }
 
     /// `−self`.
-    pub(crate) fn neg(&self) -> Poly {
-        Poly {
-            terms: self.terms.iter().map(|(m, k)| (m.clone(), -k)).collect(),
+    pub(crate) fn neg(&self) -> Result<Poly, Exceeded> {
+        let mut out = Poly::default();
+        for (m, k) in self.terms() {
+            out.terms
+                .insert(m.clone(), k.checked_neg().ok_or(Exceeded::Coefficient)?);
         }
+        Ok(out)
     }
 
-    /// `self · other`, expanded.
-    pub(crate) fn mul(&self, other: &Poly) -> Poly {
+    /// What [`Poly::mul`] of `self` and `other` costs: per pair of terms,
+    /// twice the atoms of both plus one (merged, sorted, then looked up).
+    pub(crate) fn mul_cost(&self, other: &Poly) -> u64 {
+        let (n1, n2) = (self.len() as u64, other.len() as u64);
+        let (a1, a2) = (self.atoms() as u64, other.atoms() as u64);
+        let pairs = n1
+            .saturating_mul(n2)
+            .saturating_add(a1.saturating_mul(n2))
+            .saturating_add(a2.saturating_mul(n1));
+        pairs.saturating_mul(2)
+    }
+
+    /// `self · other`, expanded (the caller charges [`Poly::mul_cost`]).
+    pub(crate) fn mul(&self, other: &Poly) -> Result<Poly, Exceeded> {
         let mut out = Poly::default();
         for (m1, k1) in self.terms() {
             for (m2, k2) in other.terms() {
-                out.add_term(merge(m1, m2), k1 * k2);
+                let k = k1.checked_mul(k2).ok_or(Exceeded::Coefficient)?;
+                out.add_term(merge(m1, m2), k)?;
             }
         }
-        out
+        Ok(out)
     }
 
-    /// Applies the trigonometric rewrites until none applies (see [`Rewrite`]).
-    /// Each rewrite lowers the sum of |coefficients|, so this terminates.
-    pub(crate) fn simplify(&mut self, groups: &Groups) {
+    /// What one simplification pass over `self` costs: `4 + 4·len + len²`
+    /// per term of `len` atoms (indexing it, then trying every pair of factors).
+    fn pass_cost(&self) -> u64 {
+        self.terms
+            .keys()
+            .map(|m| {
+                let len = m.len() as u64;
+                4 + 4 * len + len * len
+            })
+            .fold(0, u64::saturating_add)
+    }
+
+    /// Applies the trigonometric rewrites until none applies (see [`Rewrite`]),
+    /// charging `budget` before each pass. Each rewrite lowers the sum of
+    /// |coefficients|, so this terminates.
+    pub(crate) fn simplify(
+        &mut self,
+        groups: &Groups,
+        budget: &mut Budget,
+    ) -> Result<(), Exceeded> {
         loop {
+            budget.charge(self.pass_cost())?;
             let rewrites = self.find_rewrites(groups);
             if rewrites.is_empty() {
-                return;
+                return Ok(());
             }
             for r in rewrites {
-                self.add_term(r.first, -r.amount);
-                self.add_term(r.partner, -r.amount * r.partner_sign);
-                self.add_term(r.result, r.amount);
+                // |amount| ≤ i64::MAX and partner_sign is ±1: these cannot overflow.
+                self.add_term(r.first, -r.amount)?;
+                self.add_term(r.partner, -r.amount * r.partner_sign)?;
+                self.add_term(r.result, r.amount)?;
             }
         }
     }
@@ -166,7 +212,9 @@ impl Poly {
                 {
                     continue;
                 }
-                let amount = k1.signum() * k1.abs().min(k2.abs());
+                // At most both magnitudes (and i64::MAX): any such amount is a valid rewrite.
+                let magnitude = k1.unsigned_abs().min(k2.unsigned_abs());
+                let amount = k1.signum() * i64::try_from(magnitude).unwrap_or(i64::MAX);
                 used.insert(m1.clone());
                 used.insert(cand.partner.clone());
                 out.push(Rewrite {
@@ -314,6 +362,21 @@ mod tests {
     fn s(rows: &[u16]) -> Poly {
         Poly::atom(Atom::Joint(rows.to_vec(), Trig::Sin))
     }
+    fn mul(a: &Poly, b: &Poly) -> Poly {
+        a.mul(b).unwrap()
+    }
+    fn add(a: &Poly, b: &Poly) -> Poly {
+        let mut out = a.clone();
+        out.add_assign(b).unwrap();
+        out
+    }
+    fn neg(a: &Poly) -> Poly {
+        a.neg().unwrap()
+    }
+    fn simplified(mut p: Poly, groups: &Groups) -> Poly {
+        p.simplify(groups, &mut Budget::new(u64::MAX)).unwrap();
+        p
+    }
     fn one_group(n: usize) -> Groups {
         Groups::new((0..=n).map(|r| (r > 0).then_some(0)).collect())
     }
@@ -321,40 +384,54 @@ mod tests {
     #[test]
     fn angle_sums_collapse_over_a_parallel_run() {
         // c1c2c3 − c1s2s3 − s1c2s3 − s1s2c3 = c123.
-        let p = c(&[1]).mul(&c(&[2])).mul(&c(&[3]));
-        let p = p
-            .add(&c(&[1]).mul(&s(&[2])).mul(&s(&[3])).neg())
-            .add(&s(&[1]).mul(&c(&[2])).mul(&s(&[3])).neg())
-            .add(&s(&[1]).mul(&s(&[2])).mul(&c(&[3])).neg());
-        let mut q = p.clone();
-        q.simplify(&one_group(3));
-        assert_eq!(q, c(&[1, 2, 3]));
+        let p = mul(&mul(&c(&[1]), &c(&[2])), &c(&[3]));
+        let p = add(&p, &neg(&mul(&mul(&c(&[1]), &s(&[2])), &s(&[3]))));
+        let p = add(&p, &neg(&mul(&mul(&s(&[1]), &c(&[2])), &s(&[3]))));
+        let p = add(&p, &neg(&mul(&mul(&s(&[1]), &s(&[2])), &c(&[3]))));
+        assert_eq!(simplified(p.clone(), &one_group(3)), c(&[1, 2, 3]));
         // Rows in different groups stay apart.
-        let mut r = p;
-        r.simplify(&Groups::new(vec![None, Some(0), Some(1), Some(2)]));
+        let r = simplified(p, &Groups::new(vec![None, Some(0), Some(1), Some(2)]));
         assert_eq!(r.len(), 4);
     }
 
     #[test]
     fn sine_sums_and_pythagoras() {
-        let mut p = s(&[1]).mul(&c(&[2])).add(&c(&[1]).mul(&s(&[2])));
-        p.simplify(&one_group(2));
-        assert_eq!(p, s(&[1, 2]));
-        let mut q = c(&[4]).mul(&c(&[4])).add(&s(&[4]).mul(&s(&[4])));
-        q.simplify(&Groups::default());
-        assert_eq!(q, Poly::constant(1));
+        let p = add(&mul(&s(&[1]), &c(&[2])), &mul(&c(&[1]), &s(&[2])));
+        assert_eq!(simplified(p, &one_group(2)), s(&[1, 2]));
+        let q = add(&mul(&c(&[4]), &c(&[4])), &mul(&s(&[4]), &s(&[4])));
+        assert_eq!(simplified(q, &Groups::default()), Poly::constant(1));
         // Partial: 2 c1c2 − s1s2 = c12 + c1c2.
-        let mut r = c(&[1])
-            .mul(&c(&[2]))
-            .mul(&Poly::constant(2))
-            .add(&s(&[1]).mul(&s(&[2])).neg());
-        r.simplify(&one_group(2));
-        assert_eq!(r, c(&[1, 2]).add(&c(&[1]).mul(&c(&[2]))));
+        let r = mul(&mul(&c(&[1]), &c(&[2])), &Poly::constant(2));
+        let r = add(&r, &neg(&mul(&s(&[1]), &s(&[2]))));
+        let want = add(&c(&[1, 2]), &mul(&c(&[1]), &c(&[2])));
+        assert_eq!(simplified(r, &one_group(2)), want);
     }
 
     #[test]
     fn like_terms_cancel() {
-        let p = c(&[1]).add(&c(&[1]).neg());
-        assert!(p.is_zero());
+        assert!(add(&c(&[1]), &neg(&c(&[1]))).is_zero());
+    }
+
+    #[test]
+    fn coefficients_past_i64_are_refused_not_wrapped() {
+        let big = Poly::constant(i64::MAX);
+        assert_eq!(big.mul(&Poly::constant(2)), Err(Exceeded::Coefficient));
+        let mut sum = big.clone();
+        assert_eq!(sum.add_assign(&big), Err(Exceeded::Coefficient));
+        assert_eq!(Poly::constant(i64::MIN).neg(), Err(Exceeded::Coefficient));
+    }
+
+    #[test]
+    fn a_simplification_past_the_budget_stops_before_its_pass() {
+        let p = add(&mul(&s(&[1]), &c(&[2])), &mul(&c(&[1]), &s(&[2])));
+        // Two terms of two atoms: a pass costs 2 · (4 + 8 + 4) = 32.
+        assert_eq!(p.pass_cost(), 32);
+        let mut budget = Budget::new(31);
+        let mut q = p.clone();
+        assert_eq!(
+            q.simplify(&one_group(2), &mut budget),
+            Err(Exceeded::Work { needed: 32 })
+        );
+        assert_eq!((q, budget.used()), (p, 0), "nothing done, nothing charged");
     }
 }

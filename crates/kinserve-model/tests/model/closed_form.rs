@@ -16,9 +16,10 @@
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use kinserve_kinematics::{JointKind, Transform, link_transform};
-use kinserve_model::{ClosedForm, ModelLimits, Robot, load_robot_file};
+use kinserve_model::{ClosedForm, ModelError, ModelLimits, Robot, load_robot_file};
 
 /// Configurations per robot.
 const N: usize = 200;
@@ -606,7 +607,168 @@ fn a_closed_form_too_long_to_print_is_refused_by_field() {
         rows.join(",")
     ));
     let err = ClosedForm::of(&robot).unwrap_err();
-    let v = &err.violations()[0];
-    assert_eq!(v.field, "links");
-    assert!(v.message.contains("too large"), "{}", v.message);
+    assert_too_large_on_links(&err);
+    assert_eq!(ClosedForm::check(&robot).unwrap_err(), err);
+}
+
+// ------------------------------------------------------------------ work limit
+
+/// `twisted` revolute rows (α = 0.3 rad, a and d nonzero) in `convention`,
+/// then the rows in `tail`, in JSON.
+fn twisted_then(convention: &str, twisted: usize, tail: &[&str]) -> Robot {
+    let mut rows: Vec<&str> =
+        vec![r#"{"joint": "revolute", "a": 0.1, "alpha": 0.3, "d": 0.05, "theta": 0}"#; twisted];
+    rows.extend(tail);
+    model(&format!(
+        r#"{{"name": "twisted", "convention": "{convention}", "links": [{}]}}"#,
+        rows.join(",")
+    ))
+}
+
+const IDENTITY: &str = r#"{"joint": "fixed", "a": 0, "alpha": 0, "d": 0, "theta": 0}"#;
+
+fn assert_too_large_on_links(err: &ModelError) {
+    let ModelError::TooLarge { detail, field } = err else {
+        panic!("want a too-large error, got {err:?}");
+    };
+    assert_eq!(field.as_deref(), Some("links"));
+    assert!(detail.contains("too large"), "{detail}");
+    assert!(
+        detail.contains("fewer such rows"),
+        "says what to do: {detail}"
+    );
+}
+
+/// `⁰Tₙ` of `cf` (of `robot`) evaluated at `q`, parsed once per entry.
+fn eval_transform(robot: &Robot, cf: &ClosedForm, qs: &[Vec<f64>]) -> Vec<[[f64; 4]; 4]> {
+    let parsed: Vec<Vec<Poly>> = cf
+        .transform
+        .text
+        .iter()
+        .map(|r| r.iter().map(|e| Reader::parse(e)).collect())
+        .collect();
+    qs.iter()
+        .map(|q| {
+            let env = env(robot, cf, q);
+            std::array::from_fn(|i| std::array::from_fn(|j| env.eval(&parsed[i][j])))
+        })
+        .collect()
+}
+
+#[test]
+fn the_attack_model_of_issue_22_is_refused_fast_as_too_large_on_links() {
+    // 8 twisted revolute rows and 248 identity fixed rows (256 rows, the most
+    // a model may have): 5.5 s of CPU per request before the work limit.
+    let robot = twisted_then("standard", 8, &[IDENTITY; 248]);
+    let start = Instant::now();
+    let err = ClosedForm::of(&robot).unwrap_err();
+    let took = start.elapsed();
+    assert_too_large_on_links(&err);
+    assert!(err.to_string().contains("operations"), "{err}");
+    // Loose, debug build: tells a refusal from a stall, not a benchmark.
+    assert!(took < Duration::from_secs(1), "refused after {took:?}");
+    assert_eq!(
+        ClosedForm::check(&robot).unwrap_err(),
+        err,
+        "check agrees with of"
+    );
+}
+
+#[test]
+fn identity_rows_change_nothing_and_cost_nothing() {
+    // Identity rows at the end, as in the attack, and between the revolute rows.
+    let mut rng = Lcg(0x1D);
+    for convention in ["standard", "modified"] {
+        let plain = twisted_then(convention, 4, &[]);
+        let padded = {
+            let mut tail = vec![IDENTITY; 3];
+            tail.extend([IDENTITY; 200]);
+            let mut rows = vec![IDENTITY];
+            rows.extend(
+                [r#"{"joint": "revolute", "a": 0.1, "alpha": 0.3, "d": 0.05, "theta": 0}"#; 4]
+                    .iter()
+                    .flat_map(|r| [*r, IDENTITY]),
+            );
+            rows.extend(tail);
+            model(&format!(
+                r#"{{"name": "padded", "convention": "{convention}", "links": [{}]}}"#,
+                rows.join(",")
+            ))
+        };
+        let (cf_plain, cf_padded) = (
+            ClosedForm::of(&plain).unwrap(),
+            ClosedForm::of(&padded).unwrap(),
+        );
+        let qs: Vec<Vec<f64>> = (0..20).map(|_| random_q(&plain, &mut rng)).collect();
+        let (want, got) = (
+            eval_transform(&plain, &cf_plain, &qs),
+            eval_transform(&padded, &cf_padded, &qs),
+        );
+        for (w, g) in want.iter().zip(&got) {
+            for i in 0..4 {
+                for j in 0..4 {
+                    assert!((w[i][j] - g[i][j]).abs() <= 1e-9, "{convention} [{i}][{j}]");
+                }
+            }
+        }
+        // Only their own A_i (four constant 1s each) is printed for the
+        // identity rows: nothing enters the product.
+        let extra = ClosedForm::check(&padded).unwrap() - ClosedForm::check(&plain).unwrap();
+        let identity_rows = (padded.chain().rows() - plain.chain().rows()) as u64;
+        assert!(
+            extra <= identity_rows * 4 * 32,
+            "{convention}: {extra} more operations for {identity_rows} identity rows"
+        );
+    }
+}
+
+#[test]
+fn a_run_of_fixed_rows_is_multiplied_into_the_product_once() {
+    // 5 twisted revolute rows, then fixed rotations (±90° twists, θ 90°): one
+    // row or a run of 40 must cost about the same, and both print the FK.
+    const TURN: &str = r#"{"joint": "fixed", "a": 0, "alpha": 1.5707963267948966, "d": 0, "theta": 1.5707963267948966}"#;
+    const BACK: &str =
+        r#"{"joint": "fixed", "a": 0, "alpha": -1.5707963267948966, "d": 0, "theta": 0}"#;
+    let one = twisted_then("standard", 5, &[TURN]);
+    let run: Vec<&str> = (0..40)
+        .map(|i| if i % 3 == 0 { BACK } else { TURN })
+        .collect();
+    let many = twisted_then("standard", 5, &run);
+    let (w_one, w_many) = (
+        ClosedForm::check(&one).unwrap(),
+        ClosedForm::check(&many).unwrap(),
+    );
+    assert!(
+        w_many < w_one + w_one / 2,
+        "a run of 40 fixed rows costs {w_many} operations, one row {w_one}"
+    );
+    // Folding keeps the value: runs of twisted fixed rows with lengths between
+    // revolute and prismatic rows, against the numeric link product.
+    for convention in ["standard", "modified"] {
+        let robot = model(&format!(
+            r#"{{"name": "runs", "convention": "{convention}", "links": [
+              {{"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0.1, "theta": 0.1}},
+              {{"joint": "fixed", "a": 0.2, "alpha": 0.7, "d": 0.1, "theta": 0.4}},
+              {{"joint": "fixed", "a": 0, "alpha": 0, "d": 0, "theta": 0}},
+              {{"joint": "fixed", "a": -0.1, "alpha": 1.5707963267948966, "d": 0.3, "theta": 2.0}},
+              {{"joint": "fixed", "a": 0.05, "alpha": 0, "d": 0, "theta": 3.141592653589793}},
+              {{"joint": "prismatic", "a": 0.1, "alpha": 1.5707963267948966, "d": 0.2, "theta": 0.3, "limits": [0, 1]}},
+              {{"joint": "fixed", "a": 0.1, "alpha": 0, "d": 0.2, "theta": -0.6}},
+              {{"joint": "fixed", "a": 0.2, "alpha": 0, "d": 0, "theta": 0}}
+            ]}}"#
+        ));
+        check_against_fk(&robot, 0xF01D);
+    }
+}
+
+#[test]
+fn the_largest_closed_forms_served_stay_under_the_work_limit() {
+    // 7 twisted rows are served, 8 are not (standard and modified alike); the
+    // work `check` reports is within the documented limit.
+    for convention in ["standard", "modified"] {
+        let work = ClosedForm::check(&twisted_then(convention, 7, &[])).unwrap();
+        assert!(work <= ClosedForm::MAX_WORK, "{convention}: {work}");
+        let err = ClosedForm::check(&twisted_then(convention, 8, &[])).unwrap_err();
+        assert_too_large_on_links(&err);
+    }
 }
