@@ -46,7 +46,7 @@ fn planar_closed_form() -> serde_json::Value {
             example = json!(planar_closed_form())),
         (status = 400, description = "Malformed robot name", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "The closed form is too long to print (more than 20,000 terms)", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "The closed form is past the work limit (4,000,000 counted operations, ~50–100 ms of CPU) or 20,000 terms; computed once per robot version and kept", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn closed_form(
     State(state): State<AppState>,
