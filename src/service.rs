@@ -228,26 +228,11 @@ impl Service {
         })
     }
 
-    /// Up to three registered names close to `name`: equal ignoring case and
-    /// `-`/`_`, or within a small edit distance (case-insensitive), best first.
+    /// Up to three existing names close to `name`: equal ignoring case,
+    /// `-`, `_` and spaces, or within a small edit distance, best first. The
+    /// registry bounds the work (see [`crate::registry::names`]).
     fn nearest_names(&self, name: &str) -> Vec<String> {
-        let wanted = normalise(name);
-        if wanted.chars().count() > 64 {
-            return Vec::new();
-        }
-        let budget = (wanted.chars().count() / 3).max(2);
-        let mut scored: Vec<(usize, String)> = self
-            .registry
-            .list()
-            .iter()
-            .map(|e| e.robot.name().to_string())
-            .filter_map(|n| {
-                let d = strsim::levenshtein(&wanted, &normalise(&n));
-                (d <= budget).then_some((d, n))
-            })
-            .collect();
-        scored.sort();
-        scored.into_iter().take(3).map(|(_, n)| n).collect()
+        self.registry.nearest_names(name)
     }
 
     /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]),
@@ -672,14 +657,6 @@ fn truncate_name(name: &str) -> String {
         s.push('…');
     }
     s
-}
-
-/// Lowercase, with `-`, `_` and spaces removed (`Puma-560` → `puma560`).
-fn normalise(name: &str) -> String {
-    name.chars()
-        .filter(|c| !matches!(c, '-' | '_' | ' '))
-        .flat_map(char::to_lowercase)
-        .collect()
 }
 
 /// `now + limit`; a limit too long to represent (only possible when set in

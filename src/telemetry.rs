@@ -333,6 +333,81 @@ pub fn ws_message(ok: bool) {
         .increment(1);
 }
 
+/// A kind of overload answer, logged by [`log_overload`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Overload {
+    /// HTTP 503 (overloaded, store unavailable, starting or stopping).
+    Http503,
+    /// HTTP 507 (registry full, storage failure).
+    Http507,
+    /// gRPC RESOURCE_EXHAUSTED (a budget or limit spent).
+    GrpcResourceExhausted,
+}
+
+impl Overload {
+    const ALL: [Overload; 3] = [
+        Overload::Http503,
+        Overload::Http507,
+        Overload::GrpcResourceExhausted,
+    ];
+
+    fn label(self) -> &'static str {
+        match self {
+            Overload::Http503 => "http 503",
+            Overload::Http507 => "http 507",
+            Overload::GrpcResourceExhausted => "grpc RESOURCE_EXHAUSTED",
+        }
+    }
+}
+
+/// Shortest time between two overload lines of one kind.
+pub const OVERLOAD_LOG_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// At most one event per interval; counts the ones it holds back.
+#[derive(Debug, Default)]
+pub struct RateLimit {
+    state: Mutex<(Option<std::time::Instant>, u64)>,
+}
+
+impl RateLimit {
+    /// Whether an event at `now` may be logged: `Some(n)` with the number of
+    /// events suppressed since the last one logged, `None` to suppress it.
+    pub fn admit(&self, now: std::time::Instant, interval: std::time::Duration) -> Option<u64> {
+        let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        let (last, suppressed) = &mut *state;
+        if last.is_some_and(|t| now.saturating_duration_since(t) < interval) {
+            *suppressed += 1;
+            return None;
+        }
+        *last = Some(now);
+        Some(std::mem::take(suppressed))
+    }
+}
+
+/// Logs an overload answer at WARN (target `kinserve::overload`), whether or
+/// not the access log is on, at most once per [`OVERLOAD_LOG_INTERVAL`] per
+/// kind; the line counts the answers of that kind suppressed before it.
+/// Every answer is counted in the request metrics regardless.
+pub fn log_overload(kind: Overload) {
+    static LIMITS: OnceLock<[RateLimit; 3]> = OnceLock::new();
+    let limits = LIMITS.get_or_init(Default::default);
+    let Some(limit) = Overload::ALL
+        .iter()
+        .position(|k| *k == kind)
+        .and_then(|i| limits.get(i))
+    else {
+        return;
+    };
+    if let Some(suppressed) = limit.admit(std::time::Instant::now(), OVERLOAD_LOG_INTERVAL) {
+        tracing::warn!(
+            target: "kinserve::overload",
+            kind = kind.label(),
+            suppressed,
+            "overload answer sent ({suppressed} more of this kind since the previous line were not logged; the request metrics count every one)"
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -351,5 +426,26 @@ mod tests {
         // A name that got a label keeps it; built-ins are always named.
         assert_eq!(robot_label("arm-0", false), "arm-0");
         assert_eq!(robot_label("puma560", true), "puma560");
+    }
+
+    #[test]
+    fn overload_lines_are_limited_to_one_per_interval_with_the_count_held_back() {
+        use std::time::{Duration, Instant};
+        let limit = super::RateLimit::default();
+        let t0 = Instant::now();
+        let second = Duration::from_secs(1);
+        assert_eq!(limit.admit(t0, second), Some(0));
+        for ms in [1, 500, 999] {
+            assert_eq!(limit.admit(t0 + Duration::from_millis(ms), second), None);
+        }
+        assert_eq!(
+            limit.admit(t0 + Duration::from_millis(1000), second),
+            Some(3)
+        );
+        assert_eq!(limit.admit(t0 + Duration::from_millis(1001), second), None);
+        assert_eq!(
+            limit.admit(t0 + Duration::from_millis(2500), second),
+            Some(1)
+        );
     }
 }

@@ -1,14 +1,20 @@
 //! Named robot models: built-ins loaded from `robots/`, registered ones kept in
 //! a [`Store`]. Reads take a lock-free snapshot; writers are serialised and
 //! publish a new snapshot (copy-on-write) only after the store has made the
-//! change durable.
+//! change durable. Owns the robot cap (`--max-robots`): a create reserves a
+//! slot atomically before its store write and gives it back when the write
+//! fails (or once the robot is published), and the name rules that span
+//! robots: a registered name may not pass for a built-in's (module `names`,
+//! which also answers the suggestions of a 404).
 
 pub mod builtin;
+pub mod names;
 pub mod postgres;
 mod store;
 pub mod version;
 
 use std::collections::HashMap;
+use std::ops::Deref;
 use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
@@ -139,18 +145,72 @@ pub enum PutMode {
 
 type Map = HashMap<String, Arc<Entry>>;
 
+/// One published state of the registry: the robots by name, how many of them
+/// are registered, and their name index (built on first use, so at most once
+/// per registry change).
+#[derive(Debug, Default)]
+struct Snapshot {
+    robots: Map,
+    registered: usize,
+    names: OnceLock<names::NameIndex>,
+}
+
+impl Snapshot {
+    fn new(robots: Map) -> Snapshot {
+        let registered = robots
+            .values()
+            .filter(|e| e.origin == Origin::Registered)
+            .count();
+        Snapshot {
+            robots,
+            registered,
+            names: OnceLock::new(),
+        }
+    }
+
+    fn names(&self) -> &names::NameIndex {
+        self.names.get_or_init(|| {
+            names::NameIndex::build(
+                self.robots
+                    .values()
+                    .map(|e| (e.robot.name(), e.origin == Origin::Builtin)),
+            )
+        })
+    }
+}
+
+impl Deref for Snapshot {
+    type Target = Map;
+    fn deref(&self) -> &Map {
+        &self.robots
+    }
+}
+
+/// A slot of the robot cap held by a create under way; given back on drop
+/// (after the robot was published, or when its write failed).
+struct Slot<'a>(&'a Mutex<usize>);
+
+impl Drop for Slot<'_> {
+    fn drop(&mut self) {
+        let mut pending = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        *pending = pending.saturating_sub(1);
+    }
+}
+
 /// Deleted names and the revision of their deletion, so that an older change
 /// learnt later does not bring a robot back.
 type Tombstones = HashMap<String, u64>;
 
 /// The set of named robots.
 pub struct Registry {
-    map: ArcSwap<Map>,
+    map: ArcSwap<Snapshot>,
     /// Serialises snapshot updates (and the writes of a local store).
     writer: Mutex<Tombstones>,
     store: Box<dyn Store>,
     /// Most registered (not built-in) robots; a new one beyond is refused.
     max_registered: usize,
+    /// Creates under way, each holding a slot of `max_registered`.
+    pending: Mutex<usize>,
 }
 
 impl std::fmt::Debug for Registry {
@@ -174,10 +234,11 @@ impl Registry {
     /// An empty registry over `store` (nothing loaded yet).
     pub fn new(store: Box<dyn Store>) -> Registry {
         Registry {
-            map: ArcSwap::from_pointee(Map::new()),
+            map: ArcSwap::from_pointee(Snapshot::default()),
             writer: Mutex::new(Tombstones::new()),
             store,
             max_registered: usize::MAX,
+            pending: Mutex::new(0),
         }
     }
 
@@ -185,6 +246,7 @@ impl Registry {
     /// ([`Error::Full`]); replacing one is always allowed.
     pub fn with_max_registered(mut self, max: usize) -> Registry {
         self.max_registered = max;
+        self.store.limit_registered(max);
         self
     }
 
@@ -200,7 +262,7 @@ impl Registry {
                 .flatten(),
         );
         let _guard = self.lock();
-        let mut map = Map::clone(&self.map.load());
+        let mut map = self.map.load().robots.clone();
         for (label, result) in files {
             match result {
                 Ok(robot) => {
@@ -213,13 +275,16 @@ impl Registry {
             }
         }
         report.loaded = map.values().filter(|e| e.origin == Origin::Builtin).count();
-        self.map.store(Arc::new(map));
+        self.map.store(Arc::new(Snapshot::new(map)));
         report
     }
 
     /// Loads every robot the store holds. Unreadable or invalid entries, and
     /// entries whose name clashes with a built-in, are reported and skipped
-    /// (left in place). Blocking (store I/O).
+    /// (left in place). A store holding more than the cap (written by an
+    /// older version, or with a higher `--max-robots`) is loaded whole, with
+    /// a warning naming both counts; creates are then refused until deletes
+    /// bring it under the cap. Blocking (store I/O).
     pub fn load_stored(&self, limits: &ModelLimits) -> LoadReport {
         let mut report = LoadReport::default();
         for (label, record) in self.store.load_all() {
@@ -227,6 +292,15 @@ impl Registry {
                 Ok(_) => report.loaded += 1,
                 Err(e) => report.skipped.push((label, e)),
             }
+        }
+        let registered = self.map.load().registered;
+        if registered > self.max_registered {
+            tracing::warn!(
+                registered,
+                max_robots = self.max_registered,
+                "the store holds {registered} registered robots, more than --max-robots {}: all are served, new ones are refused (507) until deletes bring the count under the cap",
+                self.max_registered
+            );
         }
         report
     }
@@ -279,7 +353,7 @@ impl Registry {
         if known.is_some_and(|k| k >= revision) {
             return Ok(false);
         }
-        let mut map = Map::clone(&current);
+        let mut map = current.robots.clone();
         match entry {
             Some(e) => {
                 tombstones.remove(name);
@@ -290,7 +364,7 @@ impl Registry {
                 map.remove(name);
             }
         }
-        self.map.store(Arc::new(map));
+        self.map.store(Arc::new(Snapshot::new(map)));
         Ok(true)
     }
 
@@ -328,8 +402,54 @@ impl Registry {
     /// Number of robots of each origin `(builtin, registered)`.
     pub fn counts(&self) -> (usize, usize) {
         let map = self.map.load();
-        let builtin = map.values().filter(|e| e.origin == Origin::Builtin).count();
-        (builtin, map.len() - builtin)
+        (map.len() - map.registered, map.registered)
+    }
+
+    /// Up to three existing names close to `name`, best first (see
+    /// [`names::NameIndex::nearest`]): a bounded amount of work per call, the
+    /// index being built once per registry change.
+    pub fn nearest_names(&self, name: &str) -> Vec<String> {
+        self.map.load().names().nearest(name)
+    }
+
+    /// Refuses a new robot whose name passes for a built-in's once case,
+    /// `-`, `_` and spaces are ignored (`puma-560` beside `puma560`).
+    fn check_lookalike(&self, name: &str) -> Result<()> {
+        let snapshot = self.map.load();
+        if snapshot.contains_key(name) {
+            return Ok(());
+        }
+        match snapshot.names().builtin_lookalike(name) {
+            Some(builtin) => Err(Error::invalid_field(
+                "name",
+                format!(
+                    "looks like the built-in robot '{builtin}' (the same once case, '-', '_' and spaces are ignored): use '{builtin}' itself, or a name that differs in letters or digits"
+                ),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// A slot of the robot cap for a create of `name` (`None`: the name is
+    /// registered already, a replacement needs none). The count and the
+    /// pending creates are read under one lock, and a slot is given back only
+    /// after its robot was published, so concurrent creates never pass the cap.
+    fn reserve_slot(&self, name: &str) -> Result<Option<Slot<'_>>> {
+        let mut pending = self.pending.lock().unwrap_or_else(|p| p.into_inner());
+        let snapshot = self.map.load();
+        if snapshot.contains_key(name) {
+            return Ok(None);
+        }
+        if snapshot.registered + *pending >= self.max_registered {
+            return Err(Error::Full {
+                detail: format!(
+                    "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
+                    self.max_registered
+                ),
+            });
+        }
+        *pending += 1;
+        Ok(Some(Slot(&self.pending)))
     }
 
     /// Registers `robot` if `cond` holds, persisting it first; returns the
@@ -342,24 +462,9 @@ impl Registry {
             PutMode::Create => Condition::Absent,
             PutMode::Upsert => cond,
         };
-        let full = {
-            // One snapshot, dropped before the (slow) store write below.
-            let snapshot = self.map.load();
-            snapshot.get(&name).is_none()
-                && snapshot
-                    .values()
-                    .filter(|e| e.origin == Origin::Registered)
-                    .count()
-                    >= self.max_registered
-        };
-        if full {
-            return Err(Error::Full {
-                detail: format!(
-                    "the registry holds its maximum of {} registered robots: delete one, or start the server with a higher --max-robots",
-                    self.max_registered
-                ),
-            });
-        }
+        self.check_lookalike(&name)?;
+        // Held across the write and its publication; released on return.
+        let _slot = self.reserve_slot(&name)?;
         let spec = robot.spec().clone();
         let result = self.write(
             &name,
@@ -403,7 +508,7 @@ impl Registry {
         store_write: impl FnOnce(Option<u64>) -> Result<S>,
         outcome: impl FnOnce(S) -> (u64, Option<Arc<Entry>>, T),
     ) -> Result<T> {
-        let builtin = |map: &Map| {
+        let builtin = |map: &Snapshot| {
             map.get(name)
                 .is_some_and(|e| e.origin == Origin::Builtin)
                 .then(|| Error::ReadOnly {

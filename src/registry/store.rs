@@ -76,6 +76,11 @@ pub trait Store: Send + Sync + 'static {
     fn is_shared(&self) -> bool {
         false
     }
+    /// Sets the most robots the store may hold, for a shared store to check
+    /// on create against its own data (a save over it fails with
+    /// [`Error::Full`]). Local stores need not: the registry reserves a slot
+    /// before every create.
+    fn limit_registered(&mut self, _max: usize) {}
     /// How the store is doing.
     fn health(&self) -> StoreHealth;
 }

@@ -16,6 +16,7 @@ mod logs;
 mod metrics;
 mod openapi;
 mod pagination;
+mod registry_guards;
 mod replicas;
 mod replicas_bench;
 mod replicas_outage;

@@ -28,6 +28,7 @@ mod pose_format;
 mod requests;
 mod robot;
 mod spec;
+mod text;
 mod urdf;
 mod urdf_import;
 mod velocity;
@@ -52,15 +53,16 @@ pub use spec::{
     AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, QuaternionSpec, RobotSpec,
     TransformSpec,
 };
+pub use text::{SAFE_SET, check_label, check_text, forbidden};
 pub use urdf::to_urdf;
 pub use urdf_import::{UrdfImport, import_urdf};
 pub use velocity::{JacobianAnswer, ReferenceFrame};
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.
 pub const RIGID_TOLERANCE: f64 = 1e-6;
-/// Longest `description` / `source` accepted (characters).
+/// Longest `description` / `source` accepted (characters; see [`check_text`]).
 pub const MAX_TEXT_CHARS: usize = 4096;
-/// Longest link name accepted (characters).
+/// Longest link name accepted (characters; see [`check_label`]).
 pub const MAX_LINK_NAME_CHARS: usize = 64;
 /// Largest magnitude accepted for a model's DH parameters (`a`, `d`, `alpha`,
 /// `theta`), base/tool translations and prismatic limits, and for prismatic

@@ -11,7 +11,7 @@ use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use crate::base_tool::{check_bounded, transform_from_spec};
 use crate::error::{FieldViolation, ModelError, Result};
 use crate::spec::{AngleUnit, ConventionSpec, JointType, LengthUnit, LinkSpec, RobotSpec};
-use crate::{MAX_LINK_NAME_CHARS, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, MAX_TEXT_CHARS, validate_name};
+use crate::{MAX_MAGNITUDE, MAX_REVOLUTE_RAD, validate_name};
 
 /// Limits on model size, configurable at start-up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -165,13 +165,8 @@ fn check_header(spec: &RobotSpec, v: &mut Vec<FieldViolation>) {
         v.push(FieldViolation::new("name", m));
     }
     for (field, text) in [("description", &spec.description), ("source", &spec.source)] {
-        if let Some(t) = text
-            && t.chars().count() > MAX_TEXT_CHARS
-        {
-            v.push(FieldViolation::new(
-                field,
-                format!("must be at most {MAX_TEXT_CHARS} characters"),
-            ));
+        if let Some(Err(m)) = text.as_deref().map(crate::text::check_text) {
+            v.push(FieldViolation::new(field, m));
         }
     }
 }
@@ -233,13 +228,8 @@ fn compile_row(
     ] {
         check_bounded(v, || f(name), x);
     }
-    if let Some(name) = &l.name
-        && name.chars().count() > MAX_LINK_NAME_CHARS
-    {
-        v.push(FieldViolation::new(
-            f("name"),
-            format!("must be at most {MAX_LINK_NAME_CHARS} characters"),
-        ));
+    if let Some(Err(m)) = l.name.as_deref().map(crate::text::check_label) {
+        v.push(FieldViolation::new(f("name"), m));
     }
     let kind = match l.joint {
         JointType::Revolute => JointKind::Revolute,

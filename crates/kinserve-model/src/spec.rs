@@ -122,7 +122,8 @@ impl LengthUnit {
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 #[serde(deny_unknown_fields, remote = "Self")]
 pub struct LinkSpec {
-    /// Optional joint/link name (at most 64 characters).
+    /// Optional joint/link name: 1–64 characters, no control, bidirectional-text
+    /// control, separator or noncharacter code points (see [`crate::check_label`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "openapi", schema(max_length = 64))]
     pub name: Option<String>,
@@ -208,11 +209,12 @@ pub struct RobotSpec {
         )
     )]
     pub name: String,
-    /// Free text (at most 4096 characters).
+    /// Free text (at most 4096 characters; tab and line breaks allowed, other
+    /// control characters not: see [`crate::check_text`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "openapi", schema(max_length = 4096))]
     pub description: Option<String>,
-    /// Where the table comes from (at most 4096 characters).
+    /// Where the table comes from (at most 4096 characters, as `description`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "openapi", schema(max_length = 4096))]
     pub source: Option<String>,

@@ -271,21 +271,72 @@ fn convention_name(c: Convention) -> &'static str {
     }
 }
 
-/// Text safe inside an XML attribute.
+/// Text safe inside an XML attribute: markup characters as entities, tab and
+/// line breaks as character references (an attribute would otherwise turn them
+/// into spaces), and what XML 1.0 cannot carry at all (other control
+/// characters, U+FFFE, U+FFFF; validation refuses them, see
+/// [`crate::check_label`]) as U+FFFD.
 fn xml_escape(s: &str) -> String {
-    s.chars()
-        .map(|c| match c {
-            '&' => "&amp;".to_string(),
-            '<' => "&lt;".to_string(),
-            '>' => "&gt;".to_string(),
-            '"' => "&quot;".to_string(),
-            '\'' => "&apos;".to_string(),
-            c => c.to_string(),
-        })
-        .collect()
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            '\t' => out.push_str("&#9;"),
+            '\n' => out.push_str("&#10;"),
+            '\r' => out.push_str("&#13;"),
+            c => out.push(xml_char(c)),
+        }
+    }
+    out
 }
 
-/// Text safe inside an XML comment (no `--`).
+/// `c`, or U+FFFD where XML 1.0 has no way to write it.
+fn xml_char(c: char) -> char {
+    match u32::from(c) {
+        0x9 | 0xA | 0xD | 0x20..=0xD7FF | 0xE000..=0xFFFD | 0x10000.. => c,
+        _ => '\u{FFFD}',
+    }
+}
+
+/// Text safe inside an XML comment: no `--`, no character XML cannot carry.
+/// (A space goes between two hyphens: `a---b` → `a- - -b`.)
 fn xml_comment(s: &str) -> String {
-    s.replace("--", "- -")
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars().map(xml_char) {
+        if c == '-' && out.ends_with('-') {
+            out.push(' ');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escaping_leaves_a_parsable_attribute_with_the_same_value_where_xml_can_carry_it() {
+        for s in [
+            "a<b>&\"'",
+            "tab\there\nnew\rline",
+            "\u{1}\u{FFFF}x",
+            "\u{1F916}",
+        ] {
+            let doc = format!("<r n=\"{}\"/>", xml_escape(s));
+            let parsed = roxmltree::Document::parse(&doc).expect(&doc);
+            let want: String = s.chars().map(xml_char).collect();
+            assert_eq!(parsed.root_element().attribute("n"), Some(want.as_str()));
+        }
+    }
+
+    #[test]
+    fn comments_never_hold_a_double_hyphen() {
+        assert_eq!(xml_comment("a---b"), "a- - -b");
+        assert!(!xml_comment("----").contains("--"));
+    }
 }

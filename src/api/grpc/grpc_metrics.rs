@@ -109,6 +109,11 @@ where
                     .and_then(|v| v.to_str().ok())
                     .and_then(|v| v.parse::<i32>().ok())
                     .unwrap_or(0);
+                if code == 8 {
+                    crate::telemetry::log_overload(
+                        crate::telemetry::Overload::GrpcResourceExhausted,
+                    );
+                }
                 let code = code_name(code);
                 if access_log {
                     tracing::info!(

@@ -457,6 +457,31 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
     resp
 }
 
+/// A 5xx answer or a failed response body: overload answers (503, 507) at
+/// WARN and rate-limited ([`crate::telemetry::log_overload`]: a loop of them
+/// must not flood the log), anything else at ERROR as tower-http would.
+fn log_failure(
+    class: tower_http::classify::ServerErrorsFailureClass,
+    latency: std::time::Duration,
+    _span: &tracing::Span,
+) {
+    use crate::telemetry::{Overload, log_overload};
+    use tower_http::classify::ServerErrorsFailureClass as Class;
+    match class {
+        Class::StatusCode(axum::http::StatusCode::SERVICE_UNAVAILABLE) => {
+            log_overload(Overload::Http503)
+        }
+        Class::StatusCode(axum::http::StatusCode::INSUFFICIENT_STORAGE) => {
+            log_overload(Overload::Http507)
+        }
+        class => tracing::error!(
+            classification = %class,
+            latency_ms = latency.as_secs_f64() * 1e3,
+            "response failed"
+        ),
+    }
+}
+
 fn panic_response(err: Box<dyn std::any::Any + Send + 'static>) -> Response {
     ApiError(super::panic_to_error(err.as_ref(), "REST handler")).into_response()
 }
@@ -547,10 +572,12 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
         .layer(middleware::from_fn_with_state(access_log, record_metrics))
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(
-            TraceLayer::new_for_http().make_span_with(|req: &Request| {
-                let id = req.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or("");
-                tracing::debug_span!("http", method = %req.method(), path = %req.uri().path(), request_id = %id)
-            }),
+            TraceLayer::new_for_http()
+                .make_span_with(|req: &Request| {
+                    let id = req.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or("");
+                    tracing::debug_span!("http", method = %req.method(), path = %req.uri().path(), request_id = %id)
+                })
+                .on_failure(log_failure),
         )
         .layer(PropagateRequestIdLayer::x_request_id())
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))

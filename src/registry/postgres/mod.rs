@@ -7,6 +7,11 @@
 //! the service or the front doors: changes learnt from the database leave
 //! through [`sync::Applier`].
 //!
+//! A create also checks the cap on registered robots against the database
+//! itself (under an advisory lock, so creates on different replicas are
+//! counted one after the other): replicas creating at the same moment cannot
+//! overshoot it together.
+//!
 //! The [`Store`] methods block (they run on the blocking pool and drive the
 //! async driver with the runtime handle), give up after [`WRITE_TIMEOUT`], and
 //! fail at once while the sync task knows the database to be unreachable.
@@ -40,6 +45,9 @@ const CONNECT_TIMEOUT: Duration = Duration::from_secs(1);
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 /// Connections in the write pool.
 const POOL_SIZE: usize = 8;
+/// Key of the advisory lock a create holds while it counts and inserts
+/// ("kinsrcap" in ASCII).
+const CAP_LOCK_KEY: i64 = 0x6b69_6e73_7263_6170;
 
 /// How to reach the database. `Debug` never shows the URL.
 #[derive(Clone)]
@@ -129,6 +137,8 @@ pub struct PgStore {
     driver: tokio_postgres::Config,
     runtime: tokio::runtime::Handle,
     link: Arc<Link>,
+    /// Most live robots in the database (`usize::MAX`: no check).
+    max_registered: usize,
 }
 
 impl std::fmt::Debug for PgStore {
@@ -193,6 +203,7 @@ impl PgStore {
             driver,
             runtime: tokio::runtime::Handle::current(),
             link: Arc::new(Link::new()),
+            max_registered: usize::MAX,
         })
     }
 
@@ -249,6 +260,9 @@ impl PgStore {
         let tx = client.transaction().await.map_err(db_error)?;
         let current = locked_row(&tx, name).await?;
         cond.check(name, current.and_then(live_revision))?;
+        if current.and_then(live_revision).is_none() {
+            self.check_cap(&tx).await?;
+        }
         let row = match current {
             Some(_) => tx.query_one(UPDATE, &[&name, model]).await,
             None => match tx.query_one(INSERT, &[&name, model]).await {
@@ -264,6 +278,32 @@ impl PgStore {
             version,
             created: current.and_then(live_revision).is_none(),
         }))
+    }
+
+    /// Refuses a create once the database holds the cap of live robots. The
+    /// advisory lock (held to the end of the transaction) orders the creates
+    /// of every replica, so each counts the ones committed before it.
+    async fn check_cap(&self, tx: &tokio_postgres::Transaction<'_>) -> Result<()> {
+        if self.max_registered == usize::MAX {
+            return Ok(());
+        }
+        tx.execute("SELECT pg_advisory_xact_lock($1)", &[&CAP_LOCK_KEY])
+            .await
+            .map_err(db_error)?;
+        let live: i64 = tx
+            .query_one(COUNT_LIVE, &[])
+            .await
+            .and_then(|r| r.try_get(0))
+            .map_err(db_error)?;
+        if usize::try_from(live).unwrap_or(usize::MAX) >= self.max_registered {
+            return Err(Error::Full {
+                detail: format!(
+                    "the shared registry holds its maximum of {} registered robots (counted in the database, over every replica): delete one, or start the replicas with a higher --max-robots",
+                    self.max_registered
+                ),
+            });
+        }
+        Ok(())
     }
 
     async fn delete_async(&self, name: &str, cond: &Condition) -> Result<Version> {
@@ -293,6 +333,7 @@ const UPDATE: &str = "UPDATE kinserve_robots SET model = $2, deleted = false, \
      WHERE name = $1 RETURNING revision, updated_at";
 const INSERT: &str = "INSERT INTO kinserve_robots (name, model, revision) \
      VALUES ($1, $2, nextval('kinserve_robot_revision')) RETURNING revision, updated_at";
+const COUNT_LIVE: &str = "SELECT count(*) FROM kinserve_robots WHERE NOT deleted";
 const TOMBSTONE: &str = "UPDATE kinserve_robots SET model = NULL, deleted = true, \
      revision = nextval('kinserve_robot_revision'), updated_at = now() \
      WHERE name = $1 RETURNING revision, updated_at";
@@ -407,6 +448,10 @@ impl Store for PgStore {
 
     fn is_shared(&self) -> bool {
         true
+    }
+
+    fn limit_registered(&mut self, max: usize) {
+        self.max_registered = max;
     }
 
     fn health(&self) -> StoreHealth {

@@ -444,3 +444,61 @@ fn pinocchio_loads_every_urdf_with_the_same_fk() {
     );
     eprintln!("{report}");
 }
+
+/// A two-row model whose first joint is called `name`.
+fn named_joint_model(name: &str) -> String {
+    serde_json::json!({
+        "name": "odd-names", "convention": "standard",
+        "links": [
+            {"name": name, "joint": "revolute", "a": 0.5, "alpha": 0, "d": 0, "theta": 0},
+            {"joint": "fixed", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}
+        ]
+    })
+    .to_string()
+}
+
+#[test]
+fn every_accepted_odd_link_name_comes_back_exactly_from_the_xml() {
+    let odd = [
+        "a<b>&c\"d'e",
+        "]]>",
+        "--",
+        "-",
+        "<!-- x -->",
+        "&amp;",
+        "  spaced  ",
+        "Schulter/Gelenk #1",
+        "肩関節",
+        "\u{1F916}",
+        "\u{E000}\u{FFFD}",
+        "\u{10FFFD}",
+        &"é".repeat(64),
+    ];
+    for name in odd {
+        let robot = Robot::from_json(named_joint_model(name).as_bytes(), &ModelLimits::default())
+            .unwrap_or_else(|e| panic!("{name:?} refused: {e}"));
+        let chain = parse_chain(&to_urdf(&robot));
+        assert_eq!(chain[1].name, name, "the URDF changed the name");
+    }
+}
+
+#[test]
+fn a_name_xml_cannot_carry_is_refused_at_validation_naming_the_field() {
+    for name in [
+        "a\u{1}b",
+        "\u{0}",
+        "x\u{1b}[31m",
+        "\u{85}",
+        "\u{202E}",
+        "\u{FFFE}",
+        "",
+    ] {
+        let e = Robot::from_json(named_joint_model(name).as_bytes(), &ModelLimits::default())
+            .expect_err(name);
+        let kinserve_model::ModelError::Invalid { violations, .. } = &e else {
+            panic!("{name:?}: {e:?}");
+        };
+        assert_eq!(violations.len(), 1, "{violations:?}");
+        assert_eq!(violations[0].field, "links[0].name", "{name:?}");
+    }
+}
