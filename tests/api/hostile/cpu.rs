@@ -209,15 +209,24 @@ async fn closed_forms_of_a_costly_model_do_not_stall_the_server() {
         statuses.push(r.await.unwrap().unwrap().as_u16());
     }
     println!("closed form of the costly model: registration {registered}, reads {statuses:?}");
-    assert!(statuses.contains(&413), "one read computes it: {statuses:?}");
+    assert!(
+        statuses.contains(&413),
+        "one read computes it: {statuses:?}"
+    );
     for s in &statuses {
-        assert!([413, 503].contains(s), "past the work limit, or the client's share busy: {statuses:?}");
+        assert!(
+            [413, 503].contains(s),
+            "past the work limit, or the client's share busy: {statuses:?}"
+        );
     }
     // Computed once per version: later reads are answered from the cache, at once.
     for _ in 0..4 {
         let start = std::time::Instant::now();
         let r = attacker
-            .get(format!("{}/v1/robots/twisted_tail/closed-form", server.http))
+            .get(format!(
+                "{}/v1/robots/twisted_tail/closed-form",
+                server.http
+            ))
             .send()
             .await
             .unwrap();

@@ -10,3 +10,4 @@ mod closed_form;
 mod ik_requests;
 mod model;
 mod urdf;
+mod urdf_import;

@@ -21,11 +21,11 @@ use std::path::Path;
 use kinserve_kinematics::JointKind;
 use kinserve_model::{LengthUnit, ModelLimits, Robot, load_robot_file, to_urdf};
 
-type M4 = [[f64; 4]; 4];
+pub(crate) type M4 = [[f64; 4]; 4];
 
 const TOL: f64 = 1e-9;
 
-fn mul(a: &M4, b: &M4) -> M4 {
+pub(crate) fn mul(a: &M4, b: &M4) -> M4 {
     let mut c = [[0.0; 4]; 4];
     for i in 0..4 {
         for j in 0..4 {
@@ -75,7 +75,7 @@ fn axis_angle(u: [f64; 3], q: f64) -> [[f64; 3]; 3] {
 }
 
 #[derive(Debug)]
-struct J {
+pub(crate) struct J {
     name: String,
     kind: String,
     parent: String,
@@ -94,7 +94,7 @@ fn triple(s: Option<&str>) -> [f64; 3] {
 }
 
 /// The joints from `world` to `tool`, in chain order.
-fn parse_chain(xml: &str) -> Vec<J> {
+pub(crate) fn parse_chain(xml: &str) -> Vec<J> {
     let doc = roxmltree::Document::parse(xml).expect("well-formed XML");
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "robot");
@@ -124,7 +124,13 @@ fn parse_chain(xml: &str) -> Vec<J> {
             kind: n.attribute("type").unwrap().into(),
             parent: child("parent").unwrap().attribute("link").unwrap().into(),
             origin: homogeneous(rpy_matrix(rpy), xyz),
-            axis: child("axis").map_or([1.0, 0.0, 0.0], |a| triple(a.attribute("xyz"))),
+            // The specification's axes are unit vectors; readers (Pinocchio,
+            // KDL) normalise the ones that are not.
+            axis: child("axis").map_or([1.0, 0.0, 0.0], |a| {
+                let v = triple(a.attribute("xyz"));
+                let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                v.map(|x| x / n)
+            }),
             limits,
         };
         let c = child("child")
@@ -156,7 +162,7 @@ fn parse_chain(xml: &str) -> Vec<J> {
 }
 
 /// `world → tool` at joint values `q` (rad, m) for the movable joints in chain order.
-fn urdf_fk(chain: &[J], q: &[f64]) -> M4 {
+pub(crate) fn urdf_fk(chain: &[J], q: &[f64]) -> M4 {
     let mut qs = q.iter();
     let mut t = homogeneous(rpy_matrix([0.0; 3]), [0.0; 3]);
     for j in chain {
@@ -178,10 +184,10 @@ fn urdf_fk(chain: &[J], q: &[f64]) -> M4 {
     t
 }
 
-struct Lcg(u64);
+pub(crate) struct Lcg(pub(crate) u64);
 
 impl Lcg {
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+    pub(crate) fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
         self.0 = self
             .0
             .wrapping_mul(6364136223846793005)
@@ -190,7 +196,7 @@ impl Lcg {
     }
 }
 
-fn robots() -> Vec<Robot> {
+pub(crate) fn robots() -> Vec<Robot> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots");
     let mut files: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -201,7 +207,7 @@ fn robots() -> Vec<Robot> {
     files.iter().map(|f| load_robot_file(f).unwrap()).collect()
 }
 
-fn scale(robot: &Robot) -> f64 {
+pub(crate) fn scale(robot: &Robot) -> f64 {
     match robot.length_unit() {
         LengthUnit::M => 1.0,
         LengthUnit::Mm => 1e-3,
@@ -209,7 +215,7 @@ fn scale(robot: &Robot) -> f64 {
 }
 
 /// Random joint values in the model's units: within limits, else ±π / ±1 unit.
-fn random_q(robot: &Robot, rng: &mut Lcg) -> Vec<f64> {
+pub(crate) fn random_q(robot: &Robot, rng: &mut Lcg) -> Vec<f64> {
     robot
         .joints()
         .iter()
