@@ -7,6 +7,8 @@
 //! import exported and imported again gives the same DH table; and what a DH
 //! table cannot hold is refused, naming the element.
 
+use std::f64::consts::FRAC_PI_2;
+
 use kinserve_kinematics::JointKind;
 use kinserve_model::{
     ConventionSpec, ModelError, ModelLimits, Robot, RobotSpec, UrdfImport, import_urdf, to_urdf,
@@ -66,7 +68,7 @@ fn synthetic(rng: &mut Lcg, n: usize, case: usize) -> String {
             // Intersecting axes (no offset), turned by quarter turns.
             2 => (
                 [0.0; 3],
-                [1.5707963267948966 * (i % 3) as f64, 0.0, 0.0],
+                [FRAC_PI_2 * (i % 3) as f64, 0.0, 0.0],
                 [0.0, 1.0, 0.0],
             ),
             // A UR-like mix: offsets along one axis, quarter-turn twists.
@@ -76,7 +78,7 @@ fn synthetic(rng: &mut Lcg, n: usize, case: usize) -> String {
                     if i % 2 == 0 { 0.1 } else { 0.0 },
                     0.4 * (i % 2) as f64,
                 ],
-                [if i % 3 == 0 { 1.5707963267948966 } else { 0.0 }, 0.0, 0.0],
+                [if i % 3 == 0 { FRAC_PI_2 } else { 0.0 }, 0.0, 0.0],
                 [0.0, 0.0, 1.0],
             ),
         };
