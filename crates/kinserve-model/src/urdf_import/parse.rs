@@ -182,7 +182,11 @@ fn joint(el: &roxmltree::Node<'_, '_>) -> Result<UrdfJoint> {
             Transform::from_translation_rpy(xyz, rpy)
         }
     };
-    let axis = axis(el, &what("axis"))?;
+    // A fixed joint's axis is never used (makers' files write `0 0 0` there).
+    let axis = match kind {
+        UrdfJointKind::Fixed | UrdfJointKind::Unsupported(_) => [1.0, 0.0, 0.0],
+        _ => axis(el, &what("axis"))?,
+    };
     let limits = match (kind, child(el, "limit")) {
         (UrdfJointKind::Revolute | UrdfJointKind::Prismatic, Some(l)) => {
             let lo = l

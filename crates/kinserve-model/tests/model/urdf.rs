@@ -378,7 +378,7 @@ fn the_document_has_visuals_and_placeholder_dynamics() {
 }
 
 /// Python with Pinocchio: `KINSERVE_PYTHON`, else `python3`, if it imports `pinocchio`.
-fn pinocchio_python() -> Option<String> {
+pub(crate) fn pinocchio_python() -> Option<String> {
     let python = std::env::var("KINSERVE_PYTHON").unwrap_or_else(|_| "python3".into());
     let ok = std::process::Command::new(&python)
         .args(["-c", "import pinocchio"])

@@ -316,3 +316,121 @@ fn the_imported_model_keeps_names_limits_and_units() {
     let _: ModelError =
         import_urdf(&request("x", "not xml", ConventionSpec::Standard)).unwrap_err();
 }
+
+/// The arms of example-robot-data imported here: (case, file, base, tip).
+const MAKERS_URDFS: [(&str, &str, &str, &str); 7] = [
+    (
+        "ur3",
+        "ur_description/urdf/ur3_robot.urdf",
+        "world",
+        "tool0",
+    ),
+    (
+        "ur5",
+        "ur_description/urdf/ur5_robot.urdf",
+        "world",
+        "tool0",
+    ),
+    (
+        "ur10",
+        "ur_description/urdf/ur10_robot.urdf",
+        "world",
+        "tool0",
+    ),
+    (
+        "panda",
+        "panda_description/urdf/panda.urdf",
+        "panda_link0",
+        "panda_hand_tcp",
+    ),
+    (
+        "kinova",
+        "kinova_description/robots/kinova.urdf",
+        "base",
+        "j2s6s200_end_effector",
+    ),
+    (
+        "baxter_left",
+        "baxter_description/urdf/baxter.urdf",
+        "base",
+        "left_hand_link",
+    ),
+    (
+        "baxter_right",
+        "baxter_description/urdf/baxter.urdf",
+        "base",
+        "right_hand_link",
+    ),
+];
+
+fn run_python(python: &str, args: &[&std::ffi::OsStr]) -> std::process::Output {
+    std::process::Command::new(python)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn makers_urdfs_import_in_both_conventions_with_pinocchios_fk() {
+    let Some(python) = super::urdf::pinocchio_python() else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "no Python with pinocchio under CI: .ci/run installs it (pip install pin example-robot-data)"
+        );
+        eprintln!("SKIPPED: no Python with pinocchio (pip install pin example-robot-data)");
+        return;
+    };
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scripts/check-urdf-import-pinocchio.py");
+    let out = run_python(&python, &[script.as_os_str(), "--robots-dir".as_ref()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dir = std::path::PathBuf::from(String::from_utf8(out.stdout).unwrap().trim());
+    let mut cases = Vec::new();
+    for (name, file, base, tip) in MAKERS_URDFS {
+        let path = dir.join(file);
+        let xml = std::fs::read_to_string(&path).unwrap();
+        for convention in CONVENTIONS {
+            let spec = import_urdf(&UrdfImport {
+                base_link: Some(base.into()),
+                tip_link: Some(tip.into()),
+                ..request(name, &xml, convention)
+            })
+            .unwrap_or_else(|e| panic!("{name} {convention:?}: {e}"));
+            let joints: Vec<String> = spec.links.iter().map(|l| l.name.clone().unwrap()).collect();
+            let robot = robot(spec);
+            let mut rng = Lcg(0x5eed);
+            let samples: Vec<serde_json::Value> = (0..50)
+                .map(|_| {
+                    let q = random_q(&robot, &mut rng);
+                    let pose = robot.chain().forward(&q, 1.0).matrix();
+                    serde_json::json!({"q": q, "pose": pose})
+                })
+                .collect();
+            cases.push(serde_json::json!({
+                "name": format!("{name} {convention:?}"), "urdf": path, "base": base, "tip": tip,
+                "joints": joints, "samples": samples,
+            }));
+        }
+    }
+    let file =
+        std::env::temp_dir().join(format!("kinserve-urdf-import-{}.json", std::process::id()));
+    std::fs::write(&file, serde_json::to_vec(&cases).unwrap()).unwrap();
+    let out = run_python(&python, &[script.as_os_str(), file.as_os_str()]);
+    let _ = std::fs::remove_file(&file);
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{report}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        report.lines().filter(|l| l.ends_with(" ok")).count(),
+        14,
+        "{report}"
+    );
+    eprintln!("{report}");
+}
