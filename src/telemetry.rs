@@ -93,6 +93,10 @@ pub const FAMILIES: &[(&str, &str)] = &[
         "gRPC calls refused before a handler ran, by reason (overloaded: no request permit; streams: the open-streams budget; buffered_bytes: the buffered request bytes budget).",
     ),
     (
+        "kinserve_compute_rejected_total",
+        "Computations (IK, batches, closed forms, URDF) refused at once because the compute pool or the client's share of it was taken.",
+    ),
+    (
         "kinserve_ws_messages_total",
         "WebSocket FK messages answered, by result (ok or error).",
     ),
