@@ -52,7 +52,7 @@ fn count(statuses: &[u16], status: u16) -> usize {
     statuses.iter().filter(|s| **s == status).count()
 }
 
-#[tokio::test]
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn concurrent_creates_around_the_cap_never_leave_more_than_the_cap() {
     let tmp = tempfile::tempdir().unwrap();
     let app = spawn_in(tmp.path(), |c| c.max_robots = 20).await;
@@ -62,7 +62,9 @@ async fn concurrent_creates_around_the_cap_never_leave_more_than_the_cap() {
             .await;
         assert_eq!(r.status(), 201);
     }
+    let witness = Witness::start(&app.http);
     let statuses = concurrent_creates(&[&app], "rush", 50).await;
+    witness.finish("50 concurrent creates at the cap").await;
     assert_eq!(count(&statuses, 201), 2, "{statuses:?}");
     assert_eq!(count(&statuses, 507), 48, "{statuses:?}");
     assert_eq!(registered(&app).await.len(), 20);
@@ -366,7 +368,7 @@ async fn lookalikes_of_builtin_names_are_refused_naming_the_builtin() {
     );
 }
 
-#[tokio::test]
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn not_found_still_suggests_the_nearest_names_among_many_robots() {
     let app = spawn_app_with(|c| c.max_robots = 400).await;
     let sends = (0..300).map(|k| {
@@ -392,4 +394,21 @@ async fn not_found_still_suggests_the_nearest_names_among_many_robots() {
         !p["detail"].as_str().unwrap().contains("did you mean"),
         "{p}"
     );
+    // A flood of lookups of unknown names does not slow a well-behaved client.
+    let witness = Witness::start(&app.http);
+    let mut statuses = Vec::new();
+    for round in 0..20 {
+        let flood = (0..100).map(|k| {
+            let app = &app;
+            async move {
+                let path = format!("/v1/robots/cell-{round:02}{k:02}x");
+                app.get(&path).await.status().as_u16()
+            }
+        });
+        statuses.extend(futures_util::future::join_all(flood).await);
+    }
+    assert_eq!(count(&statuses, 404), 2000);
+    witness
+        .finish("2,000 lookups of unknown names among 300 robots")
+        .await;
 }
