@@ -348,3 +348,31 @@ async fn allow_on_the_stream_route_lists_get_and_head_only() {
         assert_eq!(allow, "GET,HEAD", "{method}");
     }
 }
+
+/// A client's close frame is answered with a close frame carrying its code
+/// (RFC 6455 §5.5.1), so the client sees a clean close, not 1006.
+#[tokio::test]
+async fn a_clients_close_is_answered_with_its_code() {
+    let app = spawn_app().await;
+    let mut ws = open(&app, "planar_2dof").await;
+    send(&mut ws, &json!({"id": 1, "joints": [0, 0]}).to_string()).await;
+    assert_eq!(next_reply(&mut ws).await["id"], 1);
+    ws.send(Message::Close(Some(tokio_tungstenite::tungstenite::protocol::CloseFrame {
+        code: CloseCode::Normal,
+        reason: "done".into(),
+    })))
+    .await
+    .unwrap();
+    let reply = tokio::time::timeout(std::time::Duration::from_secs(5), async {
+        loop {
+            match ws.next().await {
+                Some(Ok(Message::Close(f))) => return f,
+                Some(Ok(_)) => continue,
+                other => panic!("expected the server's close frame, got {other:?}"),
+            }
+        }
+    })
+    .await
+    .expect("the server answers the close");
+    assert_eq!(reply.map(|f| f.code), Some(CloseCode::Normal));
+}

@@ -232,7 +232,12 @@ async fn answer_pending(
                 }
             }
             Step::Nothing => {}
-            Step::End => return None,
+            Step::End => {
+                // tungstenite queued the reply to the client's close frame
+                // (its code echoed); it goes out with the flush.
+                let _ = tokio::time::timeout_at(send_by, socket.flush()).await;
+                return None;
+            }
         }
         // `recv` is cancel-safe: a message not ready now stays queued.
         next = match socket.recv().now_or_never() {
