@@ -151,12 +151,17 @@ impl App {
         });
         service.record_robot_count();
         let router = rest::router(state);
-        let on_signal = shutdown.clone();
+        // SIGTERM / Ctrl-C starts the drain; a second one during it stops at once.
+        let (on_signal, now) = (shutdown.clone(), CancellationToken::new());
+        let (stop_now, abort) = (stop.clone(), now.clone());
         tokio::spawn(async move {
             tokio::select! {
                 _ = os_signal() => on_signal.cancel(),
                 _ = on_signal.cancelled() => {}
             }
+            os_signal().await;
+            stop_now.cancel();
+            abort.cancel();
         });
         let grpc_server = crate::api::grpc::serve(
             grpc,
@@ -201,6 +206,9 @@ impl App {
                 tokio::time::sleep(drain_timeout).await;
             } => {
                 tracing::warn!("in-flight requests did not finish within the shutdown timeout");
+            }
+            _ = now.cancelled() => {
+                tracing::warn!("a second signal: stopping now, without waiting for in-flight requests");
             }
         }
         tracing::info!("kinserve stopped");

@@ -498,3 +498,29 @@ async fn an_unwritable_data_directory_is_507_and_unavailable_and_reads_go_on() {
     assert!(json_eq(&got, &changed), "{got}");
     assert_eq!(app.get("/v1/robots/fresh").await.status(), 200);
 }
+
+/// The first SIGTERM (or Ctrl-C) starts the drain (`/readyz` 503 during the
+/// 5 s grace); a second one stops the server at once, exit code 0.
+#[tokio::test]
+async fn a_second_signal_ends_the_drain_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut server = start_server(tmp.path(), &[], None).await;
+    server.signal("TERM");
+    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    let r = reqwest::get(format!("{}/readyz", server.http))
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 503, "draining after the first signal");
+    server.signal("INT");
+    let start = std::time::Instant::now();
+    let status = server
+        .wait_exit(std::time::Duration::from_secs(3))
+        .expect("the second signal stops the server well before the 5 s grace ends");
+    assert!(status.success(), "{status:?}");
+    println!("stopped {:?} after the second signal", start.elapsed());
+    assert!(
+        server.stderr().contains("second signal"),
+        "{}",
+        server.stderr()
+    );
+}

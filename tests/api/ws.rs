@@ -357,10 +357,12 @@ async fn a_clients_close_is_answered_with_its_code() {
     let mut ws = open(&app, "planar_2dof").await;
     send(&mut ws, &json!({"id": 1, "joints": [0, 0]}).to_string()).await;
     assert_eq!(next_reply(&mut ws).await["id"], 1);
-    ws.send(Message::Close(Some(tokio_tungstenite::tungstenite::protocol::CloseFrame {
-        code: CloseCode::Normal,
-        reason: "done".into(),
-    })))
+    ws.send(Message::Close(Some(
+        tokio_tungstenite::tungstenite::protocol::CloseFrame {
+            code: CloseCode::Normal,
+            reason: "done".into(),
+        },
+    )))
     .await
     .unwrap();
     let reply = tokio::time::timeout(std::time::Duration::from_secs(5), async {
