@@ -160,6 +160,7 @@ impl App {
                 _ = on_signal.cancelled() => {}
             }
             os_signal().await;
+            tracing::warn!("a second signal: stopping now, without waiting for in-flight requests");
             stop_now.cancel();
             abort.cancel();
         });
@@ -207,9 +208,7 @@ impl App {
             } => {
                 tracing::warn!("in-flight requests did not finish within the shutdown timeout");
             }
-            _ = now.cancelled() => {
-                tracing::warn!("a second signal: stopping now, without waiting for in-flight requests");
-            }
+            _ = now.cancelled() => {}
         }
         tracing::info!("kinserve stopped");
         Ok(())

@@ -146,3 +146,80 @@ async fn readme_error_examples_are_what_the_server_prints() {
         "the README shows at least three error examples, found {seen}"
     );
 }
+
+/// A degree table registered without `angle_unit` (read as radians) is
+/// refused on every front door, saying how to fix it, instead of being
+/// stored with wrong poses; the same table with `"angle_unit": "deg"` is fine.
+#[tokio::test]
+async fn a_degree_table_sent_as_radians_is_refused_with_the_fix() {
+    let app = spawn_app().await;
+    let mut model = planar_model("deg-table");
+    model.as_object_mut().unwrap().remove("angle_unit");
+    model["links"][0]["alpha"] = json!(90);
+    let p = problem(app.post("/v1/robots", &model).await, 422).await;
+    let by_field: Vec<(String, String)> = p["errors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["field"].as_str().unwrap().into(),
+                e["message"].as_str().unwrap().into(),
+            )
+        })
+        .collect();
+    let fields: Vec<&str> = by_field.iter().map(|(f, _)| f.as_str()).collect();
+    assert_eq!(fields, ["links[0].alpha", "links[0].limits"], "{p}");
+    for (_, message) in &by_field {
+        assert!(message.contains("add \"angle_unit\": \"deg\""), "{message}");
+    }
+    // gRPC: the same fields.
+    let mut client = app.grpc_client().await;
+    let spec: kinserve::model::RobotSpec = serde_json::from_value(model.clone()).unwrap();
+    let e = client
+        .register_robot(pb::RegisterRobotRequest {
+            robot: Some(pb::Robot::from(&spec)),
+            ..Default::default()
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument);
+    assert!(
+        e.message().contains("links[0].alpha") && e.message().contains("angle_unit"),
+        "{}",
+        e.message()
+    );
+    // Declared as degrees, it registers.
+    model["angle_unit"] = json!("deg");
+    assert_eq!(app.post("/v1/robots", &model).await.status(), 201);
+}
+
+/// A misspelled field or enum value names the nearest right one first.
+#[tokio::test]
+async fn a_misspelled_field_suggests_the_right_one() {
+    let app = spawn_app().await;
+    let (status, p) = post_raw(
+        &app,
+        "/v1/robots/puma560/fk",
+        r#"{"jionts": [0, 0, 0, 0, 0, 0]}"#,
+    )
+    .await;
+    assert_eq!(status, 400, "{p}");
+    assert_eq!(p["errors"][0]["field"], "jionts");
+    let message = p["errors"][0]["message"].as_str().unwrap();
+    assert!(message.contains("did you mean `joints`?"), "{message}");
+    let (status, p) = post_raw(
+        &app,
+        "/v1/robots/puma560/fk",
+        r#"{"joints": [0, 0, 0, 0, 0, 0], "angle_unit": "degs"}"#,
+    )
+    .await;
+    assert_eq!(status, 400, "{p}");
+    assert!(
+        p["errors"][0]["message"]
+            .as_str()
+            .unwrap()
+            .contains("did you mean `deg`?"),
+        "{p}"
+    );
+}

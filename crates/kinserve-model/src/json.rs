@@ -64,6 +64,34 @@ fn clip(s: String, max: usize) -> String {
     }
 }
 
+/// serde's "unknown field `jionts`, expected one of `joints`, …" (or
+/// "unknown variant") with the nearest expected name put first: "unknown
+/// field `jionts`: did you mean `joints`? (expected one of …)". `None` when
+/// no expected name is close (at most a third of the name's length edited).
+fn did_you_mean(message: &str) -> Option<String> {
+    let rest = message
+        .strip_prefix("unknown field ")
+        .or_else(|| message.strip_prefix("unknown variant "))?;
+    let mut quoted = rest.split('`').skip(1).step_by(2);
+    let unknown = quoted.next()?;
+    let wanted = unknown.to_lowercase();
+    let (distance, best) = quoted
+        .map(|c| (strsim::levenshtein(&wanted, &c.to_lowercase()), c))
+        .min()?;
+    if distance == 0 || distance > (unknown.chars().count() / 3).max(1) {
+        return None;
+    }
+    let kind = if message.starts_with("unknown field") {
+        "field"
+    } else {
+        "variant"
+    };
+    let expected = rest.split_once(", ").map_or("", |(_, e)| e);
+    Some(format!(
+        "unknown {kind} `{unknown}`: did you mean `{best}`? ({expected})"
+    ))
+}
+
 fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> ModelError {
     let mut path = e.path().to_string();
     // serde_path_to_error writes `?` for a map key it could not read (e.g. a
@@ -87,6 +115,9 @@ fn json_error(e: serde_path_to_error::Error<serde_json::Error>) -> ModelError {
     );
     if !syntax && let Some(i) = message.find(" at line ") {
         message.truncate(i);
+    }
+    if let Some(better) = did_you_mean(&message) {
+        message = better;
     }
     let structural = message.starts_with("unknown field") || message.starts_with("missing field");
     let names_a_field = structural || message.starts_with("duplicate field");
@@ -194,4 +225,28 @@ fn too_big(len: u64) -> std::io::Error {
             MAX_ROBOT_FILE_BYTES >> 20
         ),
     )
+}
+
+#[cfg(test)]
+mod did_you_mean_tests {
+    use super::did_you_mean;
+
+    #[test]
+    fn the_nearest_expected_name_is_suggested_first() {
+        let m = "unknown field `jionts`, expected one of `joints`, `angle_unit`, `frames`";
+        assert_eq!(
+            did_you_mean(m).as_deref(),
+            Some(
+                "unknown field `jionts`: did you mean `joints`? (expected one of `joints`, `angle_unit`, `frames`)"
+            )
+        );
+        let v = "unknown variant `degs`, expected `rad` or `deg`";
+        assert!(did_you_mean(v).unwrap().contains("did you mean `deg`?"));
+        assert_eq!(
+            did_you_mean("unknown field `zzzzzz`, expected `joints` or `frames`"),
+            None,
+            "nothing close"
+        );
+        assert_eq!(did_you_mean("missing field `joints`"), None);
+    }
 }

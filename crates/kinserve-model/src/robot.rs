@@ -112,6 +112,9 @@ impl Robot {
             .tool
             .as_ref()
             .map(|t| transform_from_spec(t, "tool", to_rad, &mut v));
+        if spec.angle_unit == AngleUnit::Rad {
+            check_not_degrees(&spec, &mut v);
+        }
         if !v.is_empty() {
             return Err(ModelError::invalid(v));
         }
@@ -212,6 +215,37 @@ fn check_size(spec: &RobotSpec, limits: &ModelLimits, v: &mut Vec<FieldViolation
 
 /// Checks row `i` and converts it to internal units; the joint, if the row is
 /// movable (`index` joints came before it).
+/// Largest revolute limit (rad) a radian table may have: 8 turns. Beyond it
+/// (or a DH angle beyond a turn) the numbers are only plausible as degrees.
+pub const MAX_PLAUSIBLE_LIMIT_RAD: f64 = 16.0 * std::f64::consts::PI;
+
+/// A table in radians whose angles are only plausible as degrees (`alpha:
+/// 90`, limits `±170`) is refused, saying how to fix it: it would otherwise
+/// be read as radians and give wrong poses without a word.
+fn check_not_degrees(spec: &RobotSpec, v: &mut Vec<FieldViolation>) {
+    let turn = 2.0 * std::f64::consts::PI + 1e-9;
+    let hint = "this table reads as degrees: add \"angle_unit\": \"deg\" to the model, or write its angles in radians";
+    for (i, l) in spec.links.iter().enumerate() {
+        for (name, x) in [("alpha", l.alpha), ("theta", l.theta)] {
+            if x.abs() > turn && x.abs() <= MAX_MAGNITUDE {
+                v.push(FieldViolation::new(
+                    format!("links[{i}].{name}"),
+                    format!("{x} rad is more than a full turn; {hint}"),
+                ));
+            }
+        }
+        if let (JointType::Revolute, Some([lo, hi])) = (l.joint, l.limits)
+            && lo.abs().max(hi.abs()) > MAX_PLAUSIBLE_LIMIT_RAD
+            && lo.abs().max(hi.abs()) <= MAX_REVOLUTE_RAD
+        {
+            v.push(FieldViolation::new(
+                format!("links[{i}].limits"),
+                format!("[{lo}, {hi}] rad is more than 8 turns; {hint}"),
+            ));
+        }
+    }
+}
+
 fn compile_row(
     i: usize,
     l: &LinkSpec,
