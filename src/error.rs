@@ -41,7 +41,9 @@ pub enum Error {
         path: String,
     },
     /// A robot of that name exists already (HTTP 409, gRPC ALREADY_EXISTS).
-    #[error("robot '{name}' already exists")]
+    #[error(
+        "robot '{name}' already exists: replace it with PUT /v1/robots/{name} (gRPC: RegisterRobot with replace: true), or delete it first"
+    )]
     AlreadyExists {
         /// The name that is taken.
         name: String,
@@ -204,9 +206,17 @@ impl Error {
             .orientation_error
             .map(|e| format!(", orientation error {e:.3e} rad"))
             .unwrap_or_default();
+        // A best attempt this far off is not a tolerance question: the target
+        // is out of the arm's reach (or of its joint limits).
+        let far = if length_unit == "mm" { 1.0 } else { 1e-3 };
+        let reach = if best.position_error > far {
+            "; the target looks out of reach: move it closer or check its units and frame"
+        } else {
+            ""
+        };
         Error::IkNotConverged {
             detail: format!(
-                "best attempt has position error {:.3e} {length_unit}{orientation} after {} iterations",
+                "best attempt has position error {:.3e} {length_unit}{orientation} after {} iterations{reach}",
                 best.position_error, best.iterations
             ),
             best: Box::new(best),

@@ -264,6 +264,10 @@ async fn an_unreachable_target_is_ik_not_converged_with_the_best_attempt() {
         p["detail"].as_str().unwrap().contains("did not converge"),
         "{p}"
     );
+    assert!(
+        p["detail"].as_str().unwrap().contains("looks out of reach"),
+        "a best attempt metres off says so: {p}"
+    );
     let best = &p["best_attempt"];
     assert_eq!(best["converged"], false);
     // UR5e reaches about 0.85 m: the best attempt is at least 4 m short.

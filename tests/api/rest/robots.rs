@@ -134,6 +134,11 @@ async fn post_creates_with_201_and_location_and_409_when_the_name_is_taken() {
     other["links"][0]["a"] = json!(0.9);
     let p = problem(app.post("/v1/robots", &other).await, 409).await;
     assert_eq!(p["type"], "urn:kinserve:problem:already-exists");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("PUT /v1/robots/arm1"),
+        "the 409 says how to replace it: {detail}"
+    );
     // Unchanged.
     let got: Value = app.get("/v1/robots/arm1").await.json().await.unwrap();
     assert!(json_eq(&got, &planar_model("arm1")));
