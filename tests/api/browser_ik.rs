@@ -149,6 +149,27 @@ async fn dragging_the_tool_moves_the_arm_by_ik_to_the_dragged_target() {
         "return {ws: document.getElementById('ws-status').textContent, last: document.body.dataset.lastJoints};",
     )
     .await;
+    // At the home pose (θ5 = 0, a wrist singularity) the gauge is empty and
+    // the warning shows (the first reading used to fill it: issue 26).
+    b.wait_until(
+        "the gauge at the home pose",
+        "return document.getElementById('manip-value').textContent !== ''
+           && document.getElementById('manip').dataset.reference !== undefined;",
+        json!([]),
+        "return {manip: document.getElementById('manip-value').textContent};",
+    )
+    .await;
+    let home = b
+        .exec(
+            "return {meter: document.getElementById('manip').value,
+                     warn: document.getElementById('singular-warning').hidden,
+                     reference: Number(document.getElementById('manip').dataset.reference)};",
+            json!([]),
+        )
+        .await;
+    assert!(home["meter"].as_f64().unwrap() < 0.1, "red at the singular home pose: {home}");
+    assert_eq!(home["warn"], false, "the singularity warning shows: {home}");
+    assert!(home["reference"].as_f64().unwrap() > 0.0, "{home}");
     // Away from the wrist singularity of the home pose (θ5 = 0): set θ5 = 40°.
     b.exec(
         "const r = document.getElementById('joint-4'); r.value = '40';

@@ -88,6 +88,15 @@ export async function fkBatch(name, configurations, signal) {
   return data;
 }
 
+/** `POST /v1/robots/{name}/jacobian/batch` with joints in degrees (revolute). */
+export async function jacobianBatch(name, configurations, signal) {
+  const { data } = await request('POST', `${robotPath(name)}/jacobian/batch`, {
+    body: { configurations, angle_unit: 'deg' },
+    signal,
+  });
+  return data;
+}
+
 /** `PUT /v1/robots/{name}` with the model text as typed; resolves `{status, statusText, data}`. */
 export async function putRobot(name, modelText, token) {
   const headers = { 'Content-Type': 'application/json' };

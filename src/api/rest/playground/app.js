@@ -1,7 +1,7 @@
 // kinserve playground: main module. Plain ES module, no third-party code.
 // Server strings only ever reach the page through textContent.
 
-import { ApiError, FkStream, fkBatch, getRobot, listRobots, putRobot } from './api.js';
+import { ApiError, FkStream, fkBatch, getRobot, jacobianBatch, listRobots, putRobot } from './api.js';
 import { jsonPathLines, lineForField } from './jsonlines.js';
 import { showClosedForm } from './closedform.js';
 import { View3D, formatLen } from './view3d.js';
@@ -27,7 +27,8 @@ const state = {
   ikCount: 0,
   pose: null, // last tool pose shown
   target: null, // IK target position being dragged or nudged
-  maxManip: 0, // largest manipulability seen for this robot (gauge scale)
+  maxManip: 0, // largest manipulability seen for this robot
+  manipRef: 0, // largest manipulability over a workspace sample (gauge scale)
   baseOrigin: [0, 0, 0],
   fieldErrors: [], // last register field errors (for re-locating markers on edit)
   syntaxError: null,
@@ -250,6 +251,9 @@ async function selectRobot(name) {
   state.pose = null;
   state.target = null;
   state.maxManip = 0;
+  state.manipRef = 0;
+  delete $('manip').dataset.reference;
+  loadManipReference(name, gen);
   showIkStatus('');
   state.stream = new FkStream(name, {
     onReply: (msg, joints) => {
@@ -482,16 +486,41 @@ function showIkStatus(text, kind) {
   s.dataset.kind = kind || '';
 }
 
+/**
+ * The gauge's scale: the largest manipulability over 64 configurations drawn
+ * within the joint limits (fixed seed), so a reading says how far the arm is
+ * from its best, not from the best seen so far.
+ */
+async function loadManipReference(name, gen) {
+  let seed = 12345;
+  const rand = () => {
+    seed = (seed * 1103515245 + 12345) % 2147483648;
+    return seed / 2147483648;
+  };
+  const configs = Array.from({ length: 64 }, () => state.joints.map((j) => j.lo + (j.hi - j.lo) * rand()));
+  try {
+    const out = await jacobianBatch(name, configs);
+    if (gen !== state.gen) return;
+    const ms = (out.results || []).map((r) => Number(r.manipulability)).filter(Number.isFinite);
+    state.manipRef = ms.length ? Math.max(...ms) : 0;
+    $('manip').dataset.reference = String(state.manipRef);
+  } catch (_) {
+    // The largest reading so far stays the scale.
+  }
+}
+
 /** The manipulability gauge and the singularity warning from an FK reply with the Jacobian. */
 function showManipulability(msg) {
   const m = Number(msg.manipulability);
   if (!Number.isFinite(m)) return;
   state.maxManip = Math.max(state.maxManip, m);
   const meter = $('manip');
-  meter.value = state.maxManip > 0 ? m / state.maxManip : 0;
+  const ref = Math.max(state.manipRef, state.maxManip);
   const c = msg.condition_number;
   $('manip-value').textContent = `${fmt(m, 4)} · condition ${c === null || c === undefined ? '∞' : fmt(Number(c), 4)}`;
   const near = msg.singular === true || c === null || Number(c) > 1e3;
+  // Empty (red) at and near a singularity, whatever the scale.
+  meter.value = near || !(ref > 0) ? 0 : Math.min(1, m / ref);
   $('singular-warning').hidden = !near;
   document.body.dataset.singular = String(!!msg.singular);
 }
