@@ -167,7 +167,10 @@ async fn dragging_the_tool_moves_the_arm_by_ik_to_the_dragged_target() {
             json!([]),
         )
         .await;
-    assert!(home["meter"].as_f64().unwrap() < 0.1, "red at the singular home pose: {home}");
+    assert!(
+        home["meter"].as_f64().unwrap() < 0.1,
+        "red at the singular home pose: {home}"
+    );
     assert_eq!(home["warn"], false, "the singularity warning shows: {home}");
     assert!(home["reference"].as_f64().unwrap() > 0.0, "{home}");
     // Away from the wrist singularity of the home pose (θ5 = 0): set θ5 = 40°.

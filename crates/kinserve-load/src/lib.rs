@@ -402,18 +402,32 @@ async fn fetch_robot(http_addr: &str, name: &str) -> Result<Robot, String> {
     .map_err(|e| e.to_string())
 }
 
+/// Most workers (`--concurrency`) and messages in flight per stream (`--pipeline`).
+pub const MAX_WORKERS: usize = 100_000;
+/// Most configurations per batch request (`--batch-size`).
+pub const MAX_BATCH: usize = 1_000_000;
+/// Slowest and fastest open-loop rates (`--rate`), requests per second: the
+/// interval between a worker's sends stays a representable duration.
+pub const MIN_RATE: f64 = 1e-3;
+/// See [`MIN_RATE`].
+pub const MAX_RATE: f64 = 1e9;
+
 /// Runs one load test and returns its report.
 pub async fn run(args: LoadArgs) -> Result<Report, String> {
-    if args.concurrency == 0 {
-        return Err("--concurrency must be at least 1".into());
+    if !(1..=MAX_WORKERS).contains(&args.concurrency) {
+        return Err(format!("--concurrency must be from 1 to {MAX_WORKERS}"));
     }
-    if args.batch_size == 0 || args.pipeline == 0 {
-        return Err("--batch-size and --pipeline must be at least 1".into());
+    if !(1..=MAX_WORKERS).contains(&args.pipeline) || !(1..=MAX_BATCH).contains(&args.batch_size) {
+        return Err(format!(
+            "--pipeline must be from 1 to {MAX_WORKERS} and --batch-size from 1 to {MAX_BATCH}"
+        ));
     }
     if let Some(r) = args.rate
-        && !(r.is_finite() && r > 0.0)
+        && !(r.is_finite() && (MIN_RATE..=MAX_RATE).contains(&r))
     {
-        return Err("--rate must be a positive number".into());
+        return Err(format!(
+            "--rate must be a number of requests per second from {MIN_RATE} to {MAX_RATE:e}"
+        ));
     }
     let robot = match args.target {
         Target::RestHealth | Target::GrpcHealth => None,
@@ -472,4 +486,28 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
         verified: args.verify,
         pose_format: args.pose_format,
     })
+}
+
+#[cfg(test)]
+mod argument_tests {
+    use clap::Parser;
+
+    use super::{LoadArgs, run};
+
+    #[tokio::test]
+    async fn out_of_range_arguments_are_errors_not_panics() {
+        for (flag, value) in [
+            ("--rate", "1e-300"),
+            ("--rate", "1e300"),
+            ("--concurrency", "100000000000"),
+            ("--concurrency", "0"),
+            ("--pipeline", "0"),
+            ("--batch-size", "100000000"),
+        ] {
+            let args = LoadArgs::try_parse_from(["kinserve-load", "--target", "rest", flag, value])
+                .unwrap();
+            let e = run(args).await.expect_err(flag);
+            assert!(e.contains(flag), "{flag} {value}: {e}");
+        }
+    }
 }
