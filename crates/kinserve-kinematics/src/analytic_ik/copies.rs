@@ -33,7 +33,7 @@ fn joint_copies(q: f64, r: f64, limit: Option<(f64, f64)>, max: usize) -> Copies
         let d = wrap(v - r);
         return vec![(v, d * d)];
     };
-    if !(lo <= hi) || !q.is_finite() {
+    if lo.partial_cmp(&hi).is_none_or(|o| o.is_gt()) || !q.is_finite() {
         return Vec::new();
     }
     let kmin = ((lo - LIMIT_SLACK - q) / TAU).ceil();

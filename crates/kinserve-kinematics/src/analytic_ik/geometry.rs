@@ -246,7 +246,9 @@ impl ZeroAxes {
                 let at = match convention {
                     Convention::Standard => frame,
                     Convention::Modified => {
-                        frame * Transform::rot_x(row.alpha) * Transform::translation(row.a, 0.0, 0.0)
+                        frame
+                            * Transform::rot_x(row.alpha)
+                            * Transform::translation(row.a, 0.0, 0.0)
                     }
                 };
                 let r = &at.rotation;

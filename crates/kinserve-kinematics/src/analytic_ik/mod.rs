@@ -198,10 +198,12 @@ pub struct AnalyticAnswer {
 impl AnalyticAnswer {
     /// Whether some solution stands for a family (singular target).
     pub fn singular(&self) -> Singular {
-        self.solutions.iter().fold(Singular::default(), |a, s| Singular {
-            shoulder: a.shoulder || s.singular.shoulder,
-            wrist: a.wrist || s.singular.wrist,
-        })
+        self.solutions
+            .iter()
+            .fold(Singular::default(), |a, s| Singular {
+                shoulder: a.shoulder || s.singular.shoulder,
+                wrist: a.wrist || s.singular.wrist,
+            })
     }
 }
 
@@ -276,7 +278,11 @@ impl AnalyticIk {
     ) {
         out.len = 0;
         let reference: [f64; 6] = std::array::from_fn(|i| {
-            reference.get(i).copied().filter(|x| x.is_finite()).unwrap_or(0.0)
+            reference
+                .get(i)
+                .copied()
+                .filter(|x| x.is_finite())
+                .unwrap_or(0.0)
         });
         let g = target.compose(&self.home_inv);
         match self.class {
@@ -334,9 +340,11 @@ impl AnalyticIk {
                 .map(|k| (pose.rotation[k / 3][k % 3] - target.rotation[k / 3][k % 3]).abs())
                 .fold(0.0, f64::max);
             let within = s.position_error <= tol && s.rotation_error <= tol;
-            let seen = out.items[..kept]
-                .iter()
-                .any(|o| o.q.iter().zip(&s.q).all(|(a, b)| wrap(a - b).abs() <= DUPLICATE));
+            let seen = out.items[..kept].iter().any(|o| {
+                o.q.iter()
+                    .zip(&s.q)
+                    .all(|(a, b)| wrap(a - b).abs() <= DUPLICATE)
+            });
             if within && !seen {
                 out.items[kept] = s;
                 kept += 1;

@@ -154,7 +154,13 @@ fn meeting23(geo: &Geometry, y: V3, reference: &[f64; 6], arms: &mut Arms) {
 fn wrist(geo: &Geometry, arm: &Arm, rg6: V3, rgp: V3, reference: &[f64; 6], out: &mut Principal) {
     let [a1, a2, a3, a4, a5, a6] = &geo.axes;
     let [q1, q2, q3] = arm.q;
-    let back = |v| rot_a(a3.h, q3.neg(), rot_a(a2.h, q2.neg(), rot_a(a1.h, q1.neg(), v)));
+    let back = |v| {
+        rot_a(
+            a3.h,
+            q3.neg(),
+            rot_a(a2.h, q2.neg(), rot_a(a1.h, q1.neg(), v)),
+        )
+    };
     let v = back(rg6);
     let wv = back(rgp);
     let free = (reference[3], reference[4]);

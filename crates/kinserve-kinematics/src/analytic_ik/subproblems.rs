@@ -171,7 +171,9 @@ pub(crate) fn two_axes(
     }
     // R(k₁, −θ₁)·t = R(k₂, θ₂)·p.
     match sp2(k1, t, k2, p) {
-        Pairs::Two([(a1, a2), (b1, b2)]) => ([(a1.neg(), a2, false), (b1.neg(), b2, true)], 2, false),
+        Pairs::Two([(a1, a2), (b1, b2)]) => {
+            ([(a1.neg(), a2, false), (b1.neg(), b2, true)], 2, false)
+        }
         Pairs::LeastSquares((a1, a2)) => ([(a1.neg(), a2, false); 2], 1, false),
     }
 }
@@ -234,6 +236,9 @@ mod tests {
         for (t1, t2) in sols {
             assert!(close(rot(K, t1.rad, p1), rot(K2, t2.rad, p2)));
         }
-        assert!(sols.iter().any(|(t1, t2)| (t1.rad - 0.4).abs() < 1e-12 && (t2.rad - 0.9).abs() < 1e-12));
+        assert!(
+            sols.iter()
+                .any(|(t1, t2)| (t1.rad - 0.4).abs() < 1e-12 && (t2.rad - 0.9).abs() < 1e-12)
+        );
     }
 }
