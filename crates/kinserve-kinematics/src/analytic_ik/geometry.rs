@@ -101,7 +101,7 @@ impl Angle {
     /// if both are 0.
     #[inline(always)]
     pub fn from_yx(y: f64, x: f64) -> Angle {
-        let n = y.hypot(x);
+        let n = (y * y + x * x).sqrt();
         if n == 0.0 {
             return Angle::ZERO;
         }

@@ -42,7 +42,7 @@ pub(crate) fn sp4(h: V3, k: V3, p: V3, d: f64, tol: f64) -> Roots {
     let hk = dot(h, k);
     let a = dot(h, p) - kp * hk;
     let b = dot(h, cross(k, p));
-    let rho = a.hypot(b);
+    let rho = (a * a + b * b).sqrt();
     if rho <= tol {
         return Roots::Degenerate;
     }
