@@ -8,8 +8,9 @@
 //! [`AnalyticAnswer`] with the 2π copies inside joint limits, nearest a seed
 //! first) and their branch and singularity flags ([`Branch`], [`Singular`]).
 //! The method is subproblem decomposition (Paden–Kahan subproblems 1–4 in
-//! the form of Elias & Wen's IK-Geo): `spherical` for spherical wrists,
-//! `parallel` for three parallel axes, on the `subproblems` of `subproblems`.
+//! the form of Elias & Wen's IK-Geo, in `subproblems`): `spherical` solves
+//! spherical wrists, `parallel` three parallel axes, `classify` decides the
+//! class, `copies` adds the 2π copies, `geometry` holds the vector algebra.
 //!
 //! Every answer is checked by FK ([`Chain::forward`]): a candidate is kept
 //! only if its position error (length unit) and the largest error of its
