@@ -9,7 +9,8 @@
 //! pose, every frame, batches of 8 poses in structure-of-arrays form) and
 //! vectorised sine/cosine ([`sincos`]), the geometric Jacobian ([`Jacobian`], with
 //! manipulability and singularity measures under the `nalgebra` feature) and,
-//! under the `ik` feature, numerical inverse kinematics ([`ik`]). The fast
+//! under the `ik` feature, numerical inverse kinematics ([`ik`]) and analytic,
+//! every-solution inverse kinematics of 6R arms ([`analytic_ik`]). The fast
 //! paths pick the widest kernel the CPU has at run time ([`Kernel`]: AVX-512,
 //! AVX2+FMA, portable); every
 //! kernel computes the same product.
@@ -37,6 +38,8 @@
 //! or on any other kinserve crate. Validation lives one layer up
 //! (`kinserve-model`); the evaluators here are unchecked by design and say so.
 
+#[cfg(feature = "ik")]
+pub mod analytic_ik;
 mod chain;
 #[cfg(feature = "nalgebra")]
 mod convert;

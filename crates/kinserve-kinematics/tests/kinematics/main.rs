@@ -9,6 +9,7 @@
 //! Needs only the math crates: robot files are read with `kinserve-model`
 //! and the reference product comes from `kinserve-testkit` (without its
 //! `server` feature), both dev-dependencies.
+mod analytic_ik;
 mod closed_forms;
 mod ik;
 mod jacobian;
