@@ -643,6 +643,7 @@ impl ServeConfig {
     pub fn grpc_settings(&self) -> GrpcSettings {
         GrpcSettings {
             max_message_bytes: self.max_batch_body_bytes,
+            max_document_bytes: self.max_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
             stream_first_message_timeout: self.stream_first_message_timeout,

@@ -590,6 +590,35 @@ async fn a_urdf_over_the_body_limit_is_413_and_over_the_message_limit_resource_e
     assert_eq!(app.get("/v1/robots/too-big").await.status(), 404);
 }
 
+/// gRPC messages may be larger than REST bodies (the batch limit), but a
+/// URDF document is bounded by the body limit on both front doors.
+#[tokio::test]
+async fn a_grpc_import_is_bounded_by_the_body_limit_not_the_message_limit() {
+    let app = spawn_app_with(|c| {
+        c.api_token = Some(TOKEN.into());
+        c.max_body_bytes = 4096;
+    })
+    .await;
+    let urdf = exported(&app, "ur5e").await;
+    let mut c = app.grpc_client().await;
+    let err = c
+        .import_urdf(with_token(import_pb("too-big", &urdf), &bearer()))
+        .await
+        .unwrap_err();
+    assert_eq!(err.code(), Code::ResourceExhausted, "{err:?}");
+    assert!(err.message().contains("--max-body-bytes"), "{err:?}");
+    let small = exported(&app, "planar_2dof").await;
+    assert!(
+        small.len() <= 4096 && urdf.len() > 4096,
+        "{} bytes",
+        small.len()
+    );
+    let ok = c
+        .import_urdf(with_token(import_pb("small", &small), &bearer()))
+        .await;
+    assert!(ok.unwrap().into_inner().created);
+}
+
 #[tokio::test]
 async fn imports_need_the_token_and_a_trusted_origin() {
     let app = guarded_app().await;

@@ -133,6 +133,17 @@ impl KinematicsService for GrpcService {
         let (_, _permit) = self.admit(&req)?;
         let mut req = req.into_inner();
         let (mode, cond) = write_mode(req.replace, &std::mem::take(&mut req.etag))?;
+        let limit = self.settings.max_document_bytes;
+        if req.urdf.len() > limit {
+            return Err(Error::TooLarge {
+                detail: format!(
+                    "the URDF document is {} bytes, over the limit of {limit} bytes (--max-body-bytes)",
+                    req.urdf.len()
+                ),
+                field: Some("urdf".into()),
+            }
+            .into());
+        }
         let import = UrdfImport::try_from(req).map_err(Error::from)?;
         let spec = crate::api::urdf_import::import(import).await?;
         let (entry, created) = self.service.register(spec, mode, cond).await?;

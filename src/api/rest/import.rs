@@ -25,7 +25,7 @@ pub const URDF_IMPORT_JSON: &str = "application/vnd.kinserve.urdf-import+json";
 /// What a registration body holds.
 pub enum RobotBody {
     /// A robot model (`application/json`).
-    Model(RobotSpec),
+    Model(Box<RobotSpec>),
     /// A URDF document (`application/xml`, `text/xml`), read as UTF-8.
     Urdf(String),
     /// A URDF import as JSON ([`URDF_IMPORT_JSON`]).
@@ -50,7 +50,7 @@ async fn read(req: Request, state: &AppState) -> Result<RobotBody, Error> {
         Ok(RobotBody::Import(parse_object(&bytes)?))
     } else if is_json(ct) {
         let bytes = read_bytes(req, state).await?;
-        Ok(RobotBody::Model(parse_object(&bytes)?))
+        Ok(RobotBody::Model(Box::new(parse_object(&bytes)?)))
     } else if mime.eq_ignore_ascii_case("application/xml") || mime.eq_ignore_ascii_case("text/xml")
     {
         utf8_charset(ct)?;
@@ -177,7 +177,7 @@ pub async fn robot_spec(
     let spec = match body {
         RobotBody::Model(spec) => {
             no_import_params(&params, "a robot model")?;
-            spec
+            *spec
         }
         RobotBody::Import(b) => {
             no_import_params(&params, "a JSON import (the fields go in the body)")?;
