@@ -1,5 +1,6 @@
 //! The `kinserve` command line: `serve` (default), `validate`, `fk`,
-//! `jacobian`, `ik`, `closed-form`, `urdf`, `bench` (in [`crate::bench`]), `healthcheck`.
+//! `jacobian`, `ik`, `closed-form`, `urdf`, `import-urdf`, `bench` (in [`crate::bench`]),
+//! `healthcheck`.
 
 use std::io::{Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -11,13 +12,13 @@ use crate::api::jacobian::{JacobianItem, JacobianOutput};
 use crate::api::pose::{FkOutput, Pose};
 use crate::api::rest::LinkTransformsOutput;
 use crate::config::{
-    Cli, ClosedFormArgs, ClosedFormFormat, Command, FkArgs, FrameArg, IkArgs, JacobianArgs,
-    LinkTransformsArgs, ModelArgs, ServeConfig,
+    Cli, ClosedFormArgs, ClosedFormFormat, Command, ConventionArg, FkArgs, FrameArg, IkArgs,
+    ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
 };
 use crate::error::Error;
 use crate::model::{
-    AngleUnit, ClosedForm, FkOptions, IkSpec, IkTargetSpec, ModelLimits, QuaternionSpec,
-    ReferenceFrame, Robot, load_robot_file, to_urdf,
+    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkSpec, IkTargetSpec, ModelLimits,
+    QuaternionSpec, ReferenceFrame, Robot, UrdfImport, import_urdf, load_robot_file, to_urdf,
 };
 use crate::registry::builtin;
 
@@ -33,6 +34,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Ik(args)) => ik(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
+        Some(Command::ImportUrdf(args)) => import_urdf_file(&args),
         Some(Command::Bench(args)) => match load_model(&args.which) {
             Ok(robot) => crate::bench::run(&robot, &args),
             Err(code) => code,
@@ -380,6 +382,91 @@ fn urdf(args: &ModelArgs) -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(code) => code,
+    }
+}
+
+/// `kinserve import-urdf`: the robot file of a URDF's chain, printed as JSON
+/// (checked as `kinserve validate` checks a file, so it loads as printed).
+fn import_urdf_file(args: &ImportUrdfArgs) -> ExitCode {
+    let label = args.file.display().to_string();
+    let urdf = match std::fs::read(&args.file) {
+        Ok(bytes) => match String::from_utf8(bytes) {
+            Ok(text) => text,
+            Err(e) => {
+                let at = e.utf8_error().valid_up_to();
+                eprintln!("{label}: urdf: the document is not UTF-8 (byte {at}): save it as UTF-8");
+                return ExitCode::FAILURE;
+            }
+        },
+        Err(e) => {
+            eprintln!("{label}: cannot read it: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let req = UrdfImport {
+        name: args
+            .name
+            .clone()
+            .unwrap_or_else(|| name_from_file(&args.file)),
+        urdf,
+        base_link: args.base.clone(),
+        tip_link: args.tip.clone(),
+        convention: match args.convention {
+            ConventionArg::Standard => ConventionSpec::Standard,
+            ConventionArg::Modified => ConventionSpec::Modified,
+        },
+    };
+    let checked = import_urdf(&req).map_err(Error::from).and_then(|spec| {
+        match Robot::from_spec(spec.clone(), &ModelLimits::default()) {
+            Ok(_) => Ok(spec),
+            Err(e) => Err(Error::from(e)),
+        }
+    });
+    let spec = match checked {
+        Ok(spec) => spec,
+        Err(e) => {
+            print_error(&label, &e);
+            return ExitCode::FAILURE;
+        }
+    };
+    match serde_json::to_string_pretty(&spec) {
+        Ok(s) => {
+            println!("{s}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("cannot print the result: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// A robot name from a file name: the part before the first `.`, lowercased,
+/// every character outside `[a-z0-9_-]` made `-`, leading `-`/`_` dropped, at
+/// most 64 characters (`robot` if nothing is left).
+pub fn name_from_file(path: &std::path::Path) -> String {
+    let file = path
+        .file_name()
+        .map(|f| f.to_string_lossy())
+        .unwrap_or_default();
+    let stem = file.split('.').next().unwrap_or("");
+    let name: String = stem
+        .chars()
+        .map(|c| c.to_ascii_lowercase())
+        .map(|c| {
+            if c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .skip_while(|c| *c == '-' || *c == '_')
+        .take(64)
+        .collect();
+    if name.is_empty() {
+        "robot".into()
+    } else {
+        name
     }
 }
 

@@ -56,6 +56,10 @@ pub enum Command {
     ClosedForm(ClosedFormArgs),
     /// Print a robot as URDF (metres, radians; the REST API's `urdf` response).
     Urdf(ModelArgs),
+    /// Convert the chain of a URDF file into a robot file (an exact DH table,
+    /// checked against the URDF's FK) and print it as JSON; exits 1, naming
+    /// the element, on what a DH table cannot hold.
+    ImportUrdf(ImportUrdfArgs),
     /// Time FK of a model on this machine: single pose, with every frame, batched.
     Bench(BenchArgs),
     /// Probe a running server's readiness (`GET /readyz`); exit 0 if ready, 1 otherwise.
@@ -210,6 +214,36 @@ pub struct ModelArgs {
     /// A directory of robot files (JSON) that add to or override the built-in robots.
     #[arg(long, env = "KINSERVE_ROBOTS_DIR")]
     pub robots_dir: Option<PathBuf>,
+}
+
+/// Arguments of `kinserve import-urdf`.
+#[derive(Debug, Args)]
+pub struct ImportUrdfArgs {
+    /// The URDF file.
+    pub file: PathBuf,
+    /// The chain's first link (default: the URDF's root, when it has only one).
+    #[arg(long, value_name = "LINK")]
+    pub base: Option<String>,
+    /// The chain's last link (default: the only leaf below the base; otherwise
+    /// the error lists the candidates).
+    #[arg(long, value_name = "LINK")]
+    pub tip: Option<String>,
+    /// The DH convention of the table.
+    #[arg(long, value_enum, default_value_t = ConventionArg::Standard)]
+    pub convention: ConventionArg,
+    /// The robot's name (default: the file's stem, lowercased, every
+    /// character outside `[a-z0-9_-]` made `-`).
+    #[arg(long)]
+    pub name: Option<String>,
+}
+
+/// `--convention` of `kinserve import-urdf`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ConventionArg {
+    /// Standard (distal) DH.
+    Standard,
+    /// Modified (proximal, Craig) DH.
+    Modified,
 }
 
 /// Arguments of `kinserve closed-form`.
@@ -609,6 +643,7 @@ impl ServeConfig {
     pub fn grpc_settings(&self) -> GrpcSettings {
         GrpcSettings {
             max_message_bytes: self.max_batch_body_bytes,
+            max_document_bytes: self.max_body_bytes,
             request_timeout: self.request_timeout,
             stream_idle_timeout: self.stream_idle_timeout,
             stream_first_message_timeout: self.stream_first_message_timeout,

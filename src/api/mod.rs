@@ -26,6 +26,7 @@ pub mod jacobian;
 pub mod pose;
 pub mod pose_format;
 pub mod rest;
+pub mod urdf_import;
 
 /// The error a caught panic is answered with, on every front door: logs the
 /// panic's message (`what` says where) and returns [`Error::Internal`], whose

@@ -22,4 +22,5 @@ mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod secure_defaults;
+mod urdf_import;
 mod ws;

@@ -15,7 +15,11 @@ fn readme_model_examples_validate_and_give_the_documented_poses() {
             Robot::from_json(b.as_bytes(), &ModelLimits::default()).expect("README model validates")
         })
         .collect();
-    assert_eq!(models.len(), 2, "one example per convention");
+    assert_eq!(
+        models.len(),
+        3,
+        "one example per convention, and the URDF import's answer"
+    );
     // Standard planar arm with a 5 cm tool: x = a1 + a2 + 0.05 at home.
     let planar = &models[0];
     assert_eq!(planar.name(), "planar-demo");
@@ -35,4 +39,17 @@ fn readme_model_examples_validate_and_give_the_documented_poses() {
             assert!((m[i][j] - expect[i][j]).abs() < 1e-12, "home pose {m:?}");
         }
     }
+    // The URDF import's answer: 0.25 m up, 0.5 + 0.25 m out at home; at
+    // (90°, 0) the arm points along y.
+    let imported = &models[2];
+    assert_eq!(imported.name(), "urdf-demo");
+    let p = imported.fk_unchecked(&[0.0, 0.0]).position();
+    assert!(
+        (p[0] - 0.75).abs() < 1e-12 && (p[2] - 0.25).abs() < 1e-12,
+        "{p:?}"
+    );
+    let p = imported
+        .fk_unchecked(&[std::f64::consts::FRAC_PI_2, 0.0])
+        .position();
+    assert!(p[0].abs() < 1e-12 && (p[1] - 0.75).abs() < 1e-12, "{p:?}");
 }

@@ -37,6 +37,7 @@ mod jacobian;
 mod pose;
 mod robot;
 mod stream;
+mod urdf;
 
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
@@ -45,6 +46,7 @@ pub use ik::{ik_batch_spec_from_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};
+pub use urdf::import_convention_from_pb;
 
 /// Generated protobuf and tonic code for `kinematics.v1`.
 #[allow(missing_docs, clippy::all)]

@@ -12,7 +12,7 @@ use super::{GrpcService, authorization, pb, streams};
 use crate::error::Error;
 use crate::model::{
     FkBatchSpec, FkSpec, IkBatchSpec, IkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
-    RobotSpec,
+    RobotSpec, UrdfImport,
 };
 use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::service::FkAnswer;
@@ -33,6 +33,36 @@ fn names(entry: &Entry) -> (String, i32) {
         entry.robot.name().to_string(),
         pb::LengthUnit::from(entry.robot.length_unit()) as i32,
     )
+}
+
+/// How a write stores its model: `replace` upserts, else creates; `etag`
+/// (with `replace` only) is the version it must replace.
+fn write_mode(replace: bool, etag: &str) -> Result<(PutMode, Condition), Error> {
+    let mode = if replace {
+        PutMode::Upsert
+    } else {
+        PutMode::Create
+    };
+    let cond = match (etag, replace) {
+        ("", _) => Condition::Any,
+        (_, false) => {
+            return Err(Error::malformed_field(
+                "etag",
+                "a condition on the current version needs replace: true (replace: false already means create only)",
+            ));
+        }
+        (tag, true) => Condition::if_match(tag, "etag")?,
+    };
+    Ok((mode, cond))
+}
+
+/// The answer of a write.
+fn registered(entry: &Entry, created: bool) -> pb::RegisterRobotResponse {
+    pb::RegisterRobotResponse {
+        robot: Some(pb::Robot::from(entry.robot.spec())),
+        created,
+        etag: entry.etag().to_string(),
+    }
 }
 
 #[tonic::async_trait]
@@ -90,28 +120,34 @@ impl KinematicsService for GrpcService {
             .robot
             .ok_or_else(|| Error::invalid_field("robot", "is required"))?;
         let spec = RobotSpec::try_from(robot).map_err(Error::from)?;
-        let mode = if req.replace {
-            PutMode::Upsert
-        } else {
-            PutMode::Create
-        };
-        let cond = match (req.etag.as_str(), req.replace) {
-            ("", _) => Condition::Any,
-            (_, false) => {
-                return Err(Error::malformed_field(
-                    "etag",
-                    "a condition on the current version needs replace: true (replace: false already means create only)",
-                )
-                .into());
-            }
-            (tag, true) => Condition::if_match(tag, "etag")?,
-        };
+        let (mode, cond) = write_mode(req.replace, &req.etag)?;
         let (entry, created) = self.service.register(spec, mode, cond).await?;
-        Ok(Response::new(pb::RegisterRobotResponse {
-            robot: Some(pb::Robot::from(entry.robot.spec())),
-            created,
-            etag: entry.etag().to_string(),
-        }))
+        Ok(Response::new(registered(&entry, created)))
+    }
+
+    async fn import_urdf(
+        &self,
+        req: Request<pb::ImportUrdfRequest>,
+    ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
+        self.service.authorize_header(authorization(&req)?)?;
+        let (_, _permit) = self.admit(&req)?;
+        let mut req = req.into_inner();
+        let (mode, cond) = write_mode(req.replace, &std::mem::take(&mut req.etag))?;
+        let limit = self.settings.max_document_bytes;
+        if req.urdf.len() > limit {
+            return Err(Error::TooLarge {
+                detail: format!(
+                    "the URDF document is {} bytes, over the limit of {limit} bytes (--max-body-bytes)",
+                    req.urdf.len()
+                ),
+                field: Some("urdf".into()),
+            }
+            .into());
+        }
+        let import = UrdfImport::try_from(req).map_err(Error::from)?;
+        let spec = crate::api::urdf_import::import(import).await?;
+        let (entry, created) = self.service.register(spec, mode, cond).await?;
+        Ok(Response::new(registered(&entry, created)))
     }
 
     async fn delete_robot(

@@ -36,6 +36,10 @@ pub use server::{Lifecycle, serve};
 pub struct GrpcSettings {
     /// Largest message a client may send, in bytes.
     pub max_message_bytes: usize,
+    /// Largest URDF document `ImportUrdf` converts, in bytes: REST's body
+    /// limit (`--max-body-bytes`), so both front doors bound the conversion's
+    /// work alike (it is linear in the document's joints).
+    pub max_document_bytes: usize,
     /// Longest time a unary call may take.
     pub request_timeout: Duration,
     /// A stream that makes no progress in either direction (no message from

@@ -1,6 +1,7 @@
 //! Request extractors that turn every client mistake into a kinserve [`Error`]
 //! (so the response is problem+json, never axum's plain-text rejection).
 
+use axum::body::Bytes;
 use axum::extract::{FromRequest, FromRequestParts, Path, Request};
 use axum::http::{header, request::Parts};
 use axum::response::{IntoResponse, Response};
@@ -23,24 +24,23 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
         let unread = super::has_body(req.headers());
-        Self::read(req, state).await.map_err(|e| {
-            // Refused before the whole body was read: close the connection after the answer.
-            let early = matches!(
-                e,
-                Error::UnsupportedMediaType { .. } | Error::TooLarge { .. }
-            );
-            super::refuse_unread(unread && early, ApiError(e).into_response())
-        })
+        Self::read(req, state).await.map_err(|e| refusal(unread, e))
     }
+}
+
+/// The answer to a body refused with `e`; refused before the whole body was
+/// read (`unread` and a 415 or 413), the connection is closed after it.
+pub(super) fn refusal(unread: bool, e: Error) -> Response {
+    let early = matches!(
+        e,
+        Error::UnsupportedMediaType { .. } | Error::TooLarge { .. }
+    );
+    super::refuse_unread(unread && early, ApiError(e).into_response())
 }
 
 impl<T: DeserializeOwned> JsonBody<T> {
     async fn read(req: Request, state: &AppState) -> Result<Self, Error> {
-        let content_type = req
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .and_then(|v| v.to_str().ok())
-            .unwrap_or("");
+        let content_type = content_type(&req);
         if !is_json(content_type) {
             return Err(Error::UnsupportedMediaType {
                 detail: format!(
@@ -49,35 +49,49 @@ impl<T: DeserializeOwned> JsonBody<T> {
                 ),
             });
         }
-        // No request compression is supported: a compressed body is refused
-        // as such (RFC 9110 §15.5.16), never decoded (no gzip bombs) nor read as JSON.
-        if let Some(coding) = req.headers().get(header::CONTENT_ENCODING) {
-            let coding = coding.to_str().unwrap_or("?").trim();
-            if !coding.eq_ignore_ascii_case("identity") {
-                return Err(Error::UnsupportedMediaType {
-                    detail: format!(
-                        "Content-Encoding '{}' is not supported; send the body uncompressed",
-                        coding.chars().take(100).collect::<String>()
-                    ),
-                });
-            }
-        }
-        let admission = req
-            .extensions()
-            .get::<super::Admission>()
-            .copied()
-            .unwrap_or_default();
-        let limit = super::buffered::body_limit(admission, &state.settings);
-        let bytes = axum::body::to_bytes(req.into_body(), limit)
-            .await
-            .map_err(|e| super::buffered::unreadable(&e, limit))?;
+        let bytes = read_bytes(req, state).await?;
         Ok(JsonBody(parse_object(&bytes)?))
     }
 }
 
+/// The request's `Content-Type` (empty when absent or not visible ASCII).
+pub(super) fn content_type(req: &Request) -> &str {
+    req.headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+}
+
+/// The whole body, uncompressed, within the route's limit (413 beyond: the
+/// batch limit on the routes admitted as batches, the body limit elsewhere).
+pub(super) async fn read_bytes(req: Request, state: &AppState) -> Result<Bytes, Error> {
+    // No request compression is supported: a compressed body is refused
+    // as such (RFC 9110 §15.5.16), never decoded (no gzip bombs) nor parsed.
+    if let Some(coding) = req.headers().get(header::CONTENT_ENCODING) {
+        let coding = coding.to_str().unwrap_or("?").trim();
+        if !coding.eq_ignore_ascii_case("identity") {
+            return Err(Error::UnsupportedMediaType {
+                detail: format!(
+                    "Content-Encoding '{}' is not supported; send the body uncompressed",
+                    coding.chars().take(100).collect::<String>()
+                ),
+            });
+        }
+    }
+    let admission = req
+        .extensions()
+        .get::<super::Admission>()
+        .copied()
+        .unwrap_or_default();
+    let limit = super::buffered::body_limit(admission, &state.settings);
+    axum::body::to_bytes(req.into_body(), limit)
+        .await
+        .map_err(|e| super::buffered::unreadable(&e, limit))
+}
+
 /// Whether a `Content-Type` value is JSON: `application/json` or
 /// `application/<anything>+json`, any case, parameters ignored.
-fn is_json(content_type: &str) -> bool {
+pub(super) fn is_json(content_type: &str) -> bool {
     let mime = content_type.split(';').next().unwrap_or("").trim();
     let Some((kind, sub)) = mime.split_once('/') else {
         return false;

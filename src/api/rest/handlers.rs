@@ -9,7 +9,9 @@ use super::AppState;
 use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
 use super::dto::{LinkTransformItem, LinkTransformsOutput, LinkTransformsRequest};
 use super::dto::{ListParams, Readiness, StoreState};
+use super::export::PLANAR_URDF_EXAMPLE;
 use super::extract::{Client, JsonBody, RobotName};
+use super::import::{self, CreateParams, ReplaceParams, RobotBody, UrdfImportBody};
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
 use crate::error::Error;
@@ -183,8 +185,22 @@ fn created(name: &str, created: bool, entry: &Entry) -> Response {
     resp
 }
 
-/// Registers a robot (201 with `Location` and `ETag`; 409 if the name is taken).
-#[utoipa::path(post, path = "/v1/robots", tag = "robots", request_body = RobotSpec,
+/// What `POST /v1/robots` and `PUT /v1/robots/{name}` take.
+const REGISTRATION_BODY: &str = "A robot model (`application/json`); or a URDF document \
+(`application/xml`, `text/xml`; UTF-8) with the robot's name (POST), `base_link`, `tip_link` and \
+`convention` as query parameters; or the same as JSON (`application/vnd.kinserve.urdf-import+json`). \
+A URDF's chain from `base_link` to `tip_link` becomes an exact DH table (its DH frames are the \
+import's own, not the URDF's link frames), checked against the URDF's forward kinematics; it is \
+registered as a model is. Refusals name `urdf`, `base_link`, `tip_link` or `convention`.";
+
+/// Registers a robot (201 with `Location` and `ETag`; 409 if the name is
+/// taken): a model, or one imported from a URDF document.
+#[utoipa::path(post, path = "/v1/robots", tag = "robots", request_body(description = REGISTRATION_BODY, content(
+        (RobotSpec = "application/json"),
+        (UrdfImportBody = "application/vnd.kinserve.urdf-import+json"),
+        (String = "application/xml", example = json!(PLANAR_URDF_EXAMPLE)),
+        (String = "text/xml", example = json!(PLANAR_URDF_EXAMPLE)))),
+    params(CreateParams),
     security((), ("bearer" = [])),
     responses((status = 201, body = RobotSpec, headers(("Location" = String, description = "The robot's URL"),
             ("ETag" = String, description = "Entity tag of the version written"),
@@ -200,8 +216,11 @@ fn created(name: &str, created: bool, entry: &Entry) -> Response {
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn create_robot(
     State(state): State<AppState>,
-    JsonBody(spec): JsonBody<RobotSpec>,
+    query: Result<Query<CreateParams>, QueryRejection>,
+    body: RobotBody,
 ) -> ApiResult<Response> {
+    let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
+    let spec = import::robot_spec(body, params, None).await?;
     let name = spec.name.clone();
     let (entry, _) = state
         .service
@@ -210,11 +229,15 @@ pub async fn create_robot(
     Ok(created(&name, true, &entry))
 }
 
-/// Creates (201) or replaces (200) a registered robot; a `name` in the body
-/// must match the path. `If-Match` replaces only that version (412 if it
+/// Creates (201) or replaces (200) a registered robot, from a model or a
+/// URDF document; a `name` in the body must match the path. `If-Match` replaces only that version (412 if it
 /// changed); `If-None-Match: *` only creates (412 if it exists).
-#[utoipa::path(put, path = "/v1/robots/{name}", tag = "robots", request_body = RobotSpec,
-    params(("name" = String, Path, description = "Robot name"),
+#[utoipa::path(put, path = "/v1/robots/{name}", tag = "robots", request_body(description = REGISTRATION_BODY, content(
+        (RobotSpec = "application/json"),
+        (UrdfImportBody = "application/vnd.kinserve.urdf-import+json"),
+        (String = "application/xml", example = json!(PLANAR_URDF_EXAMPLE)),
+        (String = "text/xml", example = json!(PLANAR_URDF_EXAMPLE)))),
+    params(("name" = String, Path, description = "Robot name"), ReplaceParams,
         ("If-Match" = Option<String>, Header, description = "Replace only if the robot is at this version: its `ETag` (`\"17\"`), a list of them, or `*` (it must exist)"),
         ("If-None-Match" = Option<String>, Header, description = "`*`: create only; 412 if the robot exists")),
     security((), ("bearer" = [])),
@@ -237,19 +260,12 @@ pub async fn put_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     headers: HeaderMap,
-    JsonBody(spec): JsonBody<RobotSpec>,
+    query: Result<Query<ReplaceParams>, QueryRejection>,
+    body: RobotBody,
 ) -> ApiResult<Response> {
-    if spec.name != name {
-        return Err(Error::invalid_field(
-            "name",
-            format!(
-                "'{}' does not match the name in the path",
-                spec.name.chars().take(64).collect::<String>()
-            ),
-        )
-        .into());
-    }
+    let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
     let cond = write_condition(&headers, true)?;
+    let spec = import::robot_spec(body, params.into(), Some(&name)).await?;
     let (entry, was_created) = state.service.register(spec, PutMode::Upsert, cond).await?;
     Ok(created(&name, was_created, &entry))
 }

@@ -8,6 +8,7 @@ mod export;
 mod extract;
 mod handlers;
 mod ik;
+mod import;
 mod jacobian;
 mod openapi;
 mod playground;

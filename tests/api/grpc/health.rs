@@ -194,6 +194,7 @@ macro_rules! reflection_suite {
                     "ListRobots",
                     "GetRobot",
                     "RegisterRobot",
+                    "ImportUrdf",
                     "DeleteRobot",
                     "ForwardKinematics",
                     "ForwardKinematicsBatch",

@@ -40,3 +40,14 @@ fn examples_in(text: &'static str, marker: &str) -> Vec<(&'static str, Value)> {
         })
         .collect()
 }
+
+/// The text of the first `fence` block (e.g. "```xml") after `marker` in the
+/// README (for examples whose request body is a document of its own).
+pub(crate) fn readme_block_after(marker: &str, fence: &str) -> &'static str {
+    README
+        .split_once(marker)
+        .and_then(|(_, rest)| rest.split_once(fence))
+        .and_then(|(_, block)| block.split_once("```"))
+        .map(|(body, _)| body.trim_start_matches('\n'))
+        .expect("a block of that kind follows the marker")
+}

@@ -173,9 +173,10 @@ async fn a_body_that_is_not_json_is_415() {
             .unwrap();
         problem(r, 415).await;
     }
+    // XML is a URDF on the registry routes (tests/api/urdf_import.rs), not a computation's body.
     let r = app
         .client
-        .put(format!("{}/v1/robots/x", app.http))
+        .post(format!("{}/v1/robots/planar_2dof/fk", app.http))
         .header("content-type", "application/xml")
         .body("<robot/>")
         .send()
