@@ -256,6 +256,22 @@ impl Service {
             .await
     }
 
+    /// The robot model of a URDF import ([`crate::model::import_urdf_with`],
+    /// under the model limits), converted and checked on the compute pool
+    /// under one of `client`'s permits.
+    pub async fn import_urdf(
+        &self,
+        client: ClientId,
+        req: crate::model::UrdfImport,
+    ) -> Result<RobotSpec> {
+        let limits = self.limits.model;
+        self.pool
+            .run(client, move |_| {
+                Ok(crate::model::import_urdf_with(&req, &limits)?)
+            })
+            .await
+    }
+
     /// Validates and registers a model, durably, if `cond` holds (`If-Match`,
     /// `If-None-Match: *`, gRPC `etag`). Returns the new entry and whether it
     /// was created (else it replaced a registered robot). Writes one audit line.

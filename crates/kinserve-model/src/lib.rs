@@ -55,7 +55,7 @@ pub use spec::{
 };
 pub use text::{SAFE_SET, check_label, check_text, forbidden};
 pub use urdf::to_urdf;
-pub use urdf_import::{UrdfImport, import_urdf};
+pub use urdf_import::{UrdfImport, import_urdf, import_urdf_with};
 pub use velocity::{JacobianAnswer, ReferenceFrame};
 
 /// Tolerance on `RᵀR − I` and `det R − 1` for a matrix to count as rigid.

@@ -130,7 +130,7 @@ impl KinematicsService for GrpcService {
         req: Request<pb::ImportUrdfRequest>,
     ) -> Result<Response<pb::RegisterRobotResponse>, Status> {
         self.service.authorize_header(authorization(&req)?)?;
-        let (_, _permit) = self.admit(&req)?;
+        let (client, _permit) = self.admit(&req)?;
         let mut req = req.into_inner();
         let (mode, cond) = write_mode(req.replace, &std::mem::take(&mut req.etag))?;
         let limit = self.settings.max_document_bytes;
@@ -145,7 +145,7 @@ impl KinematicsService for GrpcService {
             .into());
         }
         let import = UrdfImport::try_from(req).map_err(Error::from)?;
-        let spec = crate::api::urdf_import::import(import).await?;
+        let spec = crate::api::urdf_import::import(&self.service, client, import).await?;
         let (entry, created) = self.service.register(spec, mode, cond).await?;
         Ok(Response::new(registered(&entry, created)))
     }

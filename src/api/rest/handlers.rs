@@ -216,11 +216,12 @@ registered as a model is. Refusals name `urdf`, `base_link`, `tip_link` or `conv
         (status = 507, body = Problem, content_type = "application/problem+json")))]
 pub async fn create_robot(
     State(state): State<AppState>,
+    Client(client): Client,
     query: Result<Query<CreateParams>, QueryRejection>,
     body: RobotBody,
 ) -> ApiResult<Response> {
     let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
-    let spec = import::robot_spec(body, params, None).await?;
+    let spec = import::robot_spec((&state.service, client), body, params, None).await?;
     let name = spec.name.clone();
     let (entry, _) = state
         .service
@@ -259,13 +260,15 @@ pub async fn create_robot(
 pub async fn put_robot(
     State(state): State<AppState>,
     RobotName(name): RobotName,
+    Client(client): Client,
     headers: HeaderMap,
     query: Result<Query<ReplaceParams>, QueryRejection>,
     body: RobotBody,
 ) -> ApiResult<Response> {
     let Query(params) = query.map_err(|e| Error::malformed_field("query", e.body_text()))?;
     let cond = write_condition(&headers, true)?;
-    let spec = import::robot_spec(body, params.into(), Some(&name)).await?;
+    let spec =
+        import::robot_spec((&state.service, client), body, params.into(), Some(&name)).await?;
     let (entry, was_created) = state.service.register(spec, PutMode::Upsert, cond).await?;
     Ok(created(&name, was_created, &entry))
 }

@@ -170,6 +170,7 @@ fn link(name: Option<String>) -> Option<String> {
 /// URDF's imported (on the blocking pool). `path` is PUT's name: a name in
 /// the body must match it.
 pub async fn robot_spec(
+    (service, client): (&crate::service::Service, crate::compute::ClientId),
     body: RobotBody,
     params: CreateParams,
     path: Option<&str>,
@@ -189,7 +190,7 @@ pub async fn robot_spec(
                 tip_link: link(b.tip_link),
                 convention: b.convention.unwrap_or(ConventionSpec::Standard),
             };
-            crate::api::urdf_import::import(req).await?
+            crate::api::urdf_import::import(service, client, req).await?
         }
         RobotBody::Urdf(urdf) => {
             let name = match (path, params.name) {
@@ -209,7 +210,7 @@ pub async fn robot_spec(
                 tip_link: link(params.tip_link),
                 convention: convention(params.convention.as_deref())?,
             };
-            crate::api::urdf_import::import(req).await?
+            crate::api::urdf_import::import(service, client, req).await?
         }
     };
     same_name(&spec.name, path)?;

@@ -62,7 +62,24 @@ pub struct UrdfImport {
 /// assert_eq!(robot.dof(), 2);
 /// ```
 pub fn import_urdf(req: &UrdfImport) -> Result<RobotSpec> {
+    import_urdf_with(req, &ModelLimits::default())
+}
+
+/// [`import_urdf`] under `limits`: a chain with more movable joints or joints
+/// in all than a model may have is refused before it is converted.
+pub fn import_urdf_with(req: &UrdfImport, limits: &ModelLimits) -> Result<RobotSpec> {
     let urdf = parse::parse(&req.urdf)?;
+    if let Some(base) = &req.base_link
+        && !urdf.links.contains(base)
+    {
+        return Err(ModelError::invalid_field(
+            "base_link",
+            format!(
+                "no link '{base}' in the URDF (its links: {})",
+                list(urdf.links.iter().map(String::as_str))
+            ),
+        ));
+    }
     let base = match &req.base_link {
         Some(b) => b.clone(),
         None => only("base_link", "root", urdf.roots())?,
@@ -72,6 +89,19 @@ pub fn import_urdf(req: &UrdfImport) -> Result<RobotSpec> {
         None => only("tip_link", "leaf", leaves_below(&urdf, &base))?,
     };
     let chain = urdf.chain(&base, &tip)?;
+    let movable = chain
+        .iter()
+        .filter(|j| j.kind != UrdfJointKind::Fixed)
+        .count();
+    if movable > limits.max_joints || movable > limits.max_links {
+        return Err(ModelError::invalid_field(
+            "tip_link",
+            format!(
+                "the chain from '{base}' to '{tip}' has {movable} movable joints, more than a model may have ({}): choose a tip link nearer the base",
+                limits.max_joints.min(limits.max_links)
+            ),
+        ));
+    }
     supported(&chain)?;
     let (axes, tip_frame) = convert::axes(&chain);
     if axes.is_empty() {
@@ -172,22 +202,26 @@ fn table(
         if off > 1e-9 {
             return Err(convert::mismatch(&axis.joint.name, off));
         }
+        // `+ 0.0` turns a negative zero into zero (it printed as `-0.0`).
         links.push(LinkSpec {
             name: Some(axis.joint.name.clone()),
             joint: convert::joint_type(axis.joint.kind),
-            a: r.a,
-            alpha: r.alpha,
-            d: r.d,
-            theta: r.theta,
+            a: r.a + 0.0,
+            alpha: r.alpha + 0.0,
+            d: r.d + 0.0,
+            theta: r.theta + 0.0,
             limits: axis.joint.limits.map(|(lo, hi)| [lo, hi]),
         });
     }
     let last = frames.last().expect("n + 1 frames");
     Ok(RobotSpec {
         name: req.name.clone(),
+        // Names the model may not carry in its text are left out of it.
         description: Some(format!(
             "Imported from the URDF robot '{robot}', links '{base}' to '{tip}'"
-        )),
+        ))
+        .filter(|d| crate::text::check_text(d).is_ok())
+        .or_else(|| Some("Imported from a URDF".into())),
         source: Some("URDF import (kinserve)".into()),
         convention: req.convention,
         angle_unit: AngleUnit::Rad,

@@ -434,3 +434,25 @@ fn makers_urdfs_import_in_both_conventions_with_pinocchios_fk() {
     );
     eprintln!("{report}");
 }
+
+#[test]
+fn an_unknown_base_and_a_chain_over_the_model_limits_are_refused_before_converting() {
+    let (field, msg) = refused(TWO_FINGERS, Some("pedestal"), None);
+    assert_eq!(field, "base_link");
+    assert!(msg.contains("no link 'pedestal'"), "{msg}");
+    let mut rng = Lcg(7);
+    let long = synthetic(&mut rng, 12, 1);
+    let limits = ModelLimits {
+        max_joints: 4,
+        max_links: 256,
+    };
+    let e = kinserve_model::import_urdf_with(
+        &request("long", &long, ConventionSpec::Standard),
+        &limits,
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("more than a model may have (4)"),
+        "{e}"
+    );
+}
