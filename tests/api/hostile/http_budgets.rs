@@ -36,12 +36,18 @@ async fn fk_served(http: &str) {
     assert!(v["pose"].is_object(), "{v}");
 }
 
+/// The server's peak resident memory is within [`RSS_BOUND_MIB`]: the
+/// kernel's `VmHWM` (which the 50 ms samples can miss a short peak of), or
+/// the highest sample where that is higher (the kernel's RSS counters are
+/// per-CPU and may lag by a few pages).
 async fn assert_rss_bounded(watch: RssWatch, what: &str) {
     let (max, hwm) = watch.finish().await;
-    eprintln!("{what}: server VmRSS max {max} MiB, VmHWM {hwm} MiB");
+    eprintln!("{what}: server VmRSS max sampled {max} MiB, VmHWM {hwm} MiB");
+    assert!(hwm > 0, "{what}: VmHWM read as {hwm} MiB");
+    let peak = hwm.max(max);
     assert!(
-        max <= RSS_BOUND_MIB,
-        "{what}: RSS reached {max} MiB (> {RSS_BOUND_MIB})"
+        peak <= RSS_BOUND_MIB,
+        "{what}: peak RSS (VmHWM {hwm} MiB, sampled {max} MiB) > {RSS_BOUND_MIB} MiB"
     );
 }
 
@@ -204,16 +210,28 @@ async fn unread_batch_answers_are_bounded_and_dropped_after_the_write_timeout() 
     }))
     .await;
     eprintln!("unread batches: done after {:?}", started.elapsed());
-    let mut by_status = std::collections::BTreeMap::<String, usize>::new();
-    for (status, rest) in &results {
-        assert!(rest.is_some(), "a connection was still open: {status:?}");
-        *by_status.entry(format!("{status:?}")).or_default() += 1;
+    let mut by_status = std::collections::BTreeMap::<u16, usize>::new();
+    for (i, (status, rest)) in results.iter().enumerate() {
+        let status = status.unwrap_or_else(|| panic!("request {i} was never answered"));
+        assert!(
+            rest.is_some(),
+            "connection {i} was still open after its {status}"
+        );
+        *by_status.entry(status).or_default() += 1;
     }
     let whole = results
         .iter()
         .filter(|(_, r)| *r >= Some(3_080_535))
         .count();
     eprintln!("unread batches: answers by status {by_status:?}, {whole} read whole in the end");
+    let (served, refused) = (by_status.get(&200), by_status.get(&503));
+    assert_eq!(
+        served.unwrap_or(&0) + refused.unwrap_or(&0),
+        CLIENTS,
+        "only 200 and 503: {by_status:?}"
+    );
+    // 197 MB of answers against a 64 MiB budget: some fit, the rest do not.
+    assert!(served.is_some() && refused.is_some(), "{by_status:?}");
     checker.finish().await;
     assert_rss_bounded(watch, "64 unread 10,000-pose batch answers").await;
 }
