@@ -477,19 +477,31 @@ async fn readyz_is_503_during_the_shutdown_grace_while_fk_is_served() {
     use tonic_health::pb::health_check_response::ServingStatus;
     use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
 
-    let app = spawn_app_with(|c| c.shutdown_grace = Duration::from_secs(4)).await;
+    // The grace is long (12 s) so that the checks below fit in it on a
+    // loaded runner; /readyz turns 503 at once (reported), asserted within
+    // a third of the grace.
+    const GRACE: Duration = Duration::from_secs(12);
+    let app = spawn_app_with(|c| c.shutdown_grace = GRACE).await;
     let mut health = HealthClient::new(channel(&app).await);
     let t = Instant::now();
     app.begin_shutdown();
     let mut saw_503 = false;
-    while t.elapsed() < Duration::from_millis(1500) {
+    while t.elapsed() < GRACE / 3 {
         if app.get("/readyz").await.status() == 503 {
             saw_503 = true;
             break;
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    assert!(saw_503, "/readyz never 503 during the grace");
+    assert!(
+        saw_503,
+        "/readyz not 503 within {:?} of the shutdown",
+        GRACE / 3
+    );
+    kinserve_testkit::report(&format!(
+        "/readyz 503 after {:?} of the shutdown",
+        t.elapsed()
+    ));
     fk_ok(&app, "planar_2dof", json!({"joints": [0, 0]})).await;
     let fresh = reqwest::Client::new()
         .post(format!("{}/v1/robots/planar_2dof/fk", app.http))
@@ -507,13 +519,10 @@ async fn readyz_is_503_during_the_shutdown_grace_while_fk_is_served() {
         .into_inner()
         .status;
     assert_eq!(status, ServingStatus::NotServing as i32);
-    assert!(
-        t.elapsed() < Duration::from_secs(4),
-        "checks ran past the grace"
-    );
+    assert!(t.elapsed() < GRACE, "checks ran past the grace");
     let addr = addr_of(&app.http);
     let mut closed = false;
-    while t.elapsed() < Duration::from_secs(4) + EVENTUALLY {
+    while t.elapsed() < GRACE + EVENTUALLY {
         if TcpStream::connect(&addr).await.is_err() {
             closed = true;
             break;
