@@ -289,7 +289,11 @@ fn temp_files(data: &Path) -> Vec<String> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_full_disk_is_507_and_unavailable_and_changes_nothing() {
     if Command::new("prlimit").arg("--version").output().is_err() {
-        eprintln!("prlimit (util-linux) is not installed: skipping the full-disk test");
+        kinserve_testkit::skip_unless_ci(
+            "full-disk test",
+            "prlimit is not installed",
+            "apt-get install util-linux",
+        );
         return;
     }
     let tmp = tempfile::tempdir().unwrap();

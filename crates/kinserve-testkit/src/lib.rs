@@ -4,7 +4,9 @@
 //! It owns the plain reference FK product that the fast paths are tested
 //! against ([`mod@reference`]), the property checks shared by the `cargo fuzz`
 //! targets in `fuzz/` and the corpus replay test (`fuzzing`), and the
-//! built-in robot files as bytes for those checks.
+//! built-in robot files as bytes for those checks, and the one skip rule for
+//! tests whose tools may be missing ([`mod@skip`]: fail under CI, else say
+//! SKIPPED where it is seen).
 //!
 //! Features: the reference path needs only the math crates
 //! (`kinserve-kinematics`, `kinserve-model`), so the math crates' own tests
@@ -22,5 +24,7 @@ mod fuzz_shared;
 #[cfg(feature = "server")]
 pub mod fuzzing;
 pub mod reference;
+pub mod skip;
 
 pub use reference::{RobotExt, forward_reference, supported_kernels};
+pub use skip::{report, skip_unless_ci, under_ci};

@@ -24,7 +24,9 @@ pub(crate) const WAIT: Duration = Duration::from_secs(60);
 pub(crate) const POLL: Duration = Duration::from_millis(50);
 pub(crate) const FK_TOL: f64 = 1e-9;
 
-pub(crate) const SKIP_MESSAGE: &str = "SKIPPED: browser test needs chromium + chromium-driver (apt-get install chromium chromium-driver)";
+/// How to install what the browser tests need (their SKIPPED line and, under
+/// CI, their failure say it).
+pub(crate) const SKIP_FIX: &str = "apt-get install chromium chromium-driver; .ci/run installs them";
 
 // ------------------------------------------------------------ binaries --
 
@@ -489,20 +491,16 @@ pub(crate) fn console_errors(entries: &[Value], allowed: impl Fn(&str) -> bool) 
         .collect()
 }
 
-/// The browser binaries, or `None` after printing the skip message (a
-/// failure under `CI=true`, where the test must run).
+/// The browser binaries, or `None` after printing SKIPPED (a failure under
+/// CI, where the test must run: `kinserve_testkit::skip_unless_ci`).
 pub(crate) fn browser_or_skip() -> Option<(PathBuf, PathBuf)> {
     let found = find_browser();
     if found.is_none() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!(
-                "CI=true but the browser test cannot run: chromium and/or chromedriver missing \
-                 (apt-get install chromium chromium-driver; .ci/run does this)"
-            );
-        }
-        // Straight to the process' stderr: the test harness would swallow
-        // `eprintln!` of a passing test, and the skip must be visible.
-        let _ = writeln!(std::io::stderr().lock(), "{SKIP_MESSAGE}");
+        kinserve_testkit::skip_unless_ci(
+            "browser test",
+            "chromium and/or chromedriver missing",
+            SKIP_FIX,
+        );
     }
     found
 }

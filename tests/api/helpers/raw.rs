@@ -8,16 +8,19 @@ use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-/// `VmRSS` and `VmHWM` of process `pid`, in MiB.
+/// `VmRSS` and `VmHWM` of process `pid`, in MiB. Panics when
+/// `/proc/PID/status` cannot be read or lacks a field: a bound on memory must
+/// not pass on a reading of 0.
 pub(crate) fn rss_mib(pid: u32) -> (u64, u64) {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    let path = format!("/proc/{pid}/status");
+    let status = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let field = |name: &str| {
         status
             .lines()
             .find(|l| l.starts_with(name))
             .and_then(|l| l.split_whitespace().nth(1))
             .and_then(|kb| kb.parse::<u64>().ok())
-            .unwrap_or(0)
+            .unwrap_or_else(|| panic!("{path} has no {name} in kB:\n{status}"))
             / 1024
     };
     (field("VmRSS:"), field("VmHWM:"))
@@ -50,10 +53,13 @@ impl RssWatch {
         }
     }
 
-    /// Highest VmRSS seen, and the process's VmHWM, in MiB.
+    /// Highest VmRSS seen, and the process's VmHWM (the kernel's peak, which
+    /// no sampling can miss), in MiB. Fails when a sample could not be read.
     pub(crate) async fn finish(self) -> (u64, u64) {
         self.stop.store(true, Ordering::Release);
-        let _ = self.task.await;
+        self.task
+            .await
+            .expect("sampling /proc/PID/status failed (see the panic above)");
         let (now, hwm) = rss_mib(self.pid);
         (self.max.load(Ordering::Acquire).max(now), hwm)
     }

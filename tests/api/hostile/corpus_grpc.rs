@@ -1,5 +1,7 @@
 //! The gRPC corpus: typed messages, raw frames and stream cases, with the
-//! parallel FK client checking the server keeps answering.
+//! parallel FK client checking the server keeps answering. OK answers' poses
+//! are checked against the plain reference product (1e-12); the case count
+//! has a floor (today's 53).
 
 use kinserve::api::grpc::pb;
 use kinserve::api::grpc::pb::kinematics_service_client::KinematicsServiceClient;
@@ -140,6 +142,9 @@ fn case_options(case: &Value) -> Option<pb::FkOptions> {
     })
 }
 
+/// Stream cases in today's corpus (the floor the replay asserts).
+const STREAM_CASES: usize = 14;
+
 fn code_named(name: &str) -> Code {
     match name {
         "Ok" => Code::Ok,
@@ -177,6 +182,18 @@ fn check_status(case: &Value, r: Result<(), tonic::Status>) -> Result<(), String
     Ok(())
 }
 
+/// Whether a case's options ask for degrees.
+fn case_deg(case: &Value) -> bool {
+    case_options(case).is_some_and(|o| o.angle_unit == pb::AngleUnit::Deg as i32)
+}
+
+/// Checks an OK answer's pose against the reference product.
+fn check_pb_pose(case: &Value, joints: &[f64], pose: Option<&pb::Pose>) -> Result<(), String> {
+    let robot = case["robot"].as_str().unwrap();
+    let pose = pose.ok_or("an OK answer without a pose")?;
+    matrix_matches(&pose.matrix, &reference_pose(robot, joints, case_deg(case)))
+}
+
 async fn run_grpc_case(
     c: &mut KinematicsServiceClient<tonic::transport::Channel>,
     raw: &reqwest::Client,
@@ -184,14 +201,20 @@ async fn run_grpc_case(
     case: &Value,
 ) -> Result<(), String> {
     let r = match case["rpc"].as_str().unwrap() {
-        "fk" => c
-            .forward_kinematics(pb::ForwardKinematicsRequest {
-                robot: case["robot"].as_str().unwrap().to_owned(),
-                joints: case_joints(case),
-                options: case_options(case),
-            })
-            .await
-            .map(drop),
+        "fk" => {
+            let joints = case_joints(case);
+            let answer = c
+                .forward_kinematics(pb::ForwardKinematicsRequest {
+                    robot: case["robot"].as_str().unwrap().to_owned(),
+                    joints: joints.clone(),
+                    options: case_options(case),
+                })
+                .await;
+            if let Ok(a) = &answer {
+                check_pb_pose(case, &joints, a.get_ref().pose.as_ref())?;
+            }
+            answer.map(drop)
+        }
         "batch" => {
             let configurations = match case["gen"]["kind"].as_str() {
                 Some("configs") => vec![
@@ -207,13 +230,28 @@ async fn run_grpc_case(
                     .map(|q| pb::JointConfiguration { joints: nums(q) })
                     .collect(),
             };
-            c.forward_kinematics_batch(pb::ForwardKinematicsBatchRequest {
-                robot: case["robot"].as_str().unwrap().to_owned(),
-                configurations,
-                options: None,
-            })
-            .await
-            .map(drop)
+            let answer = c
+                .forward_kinematics_batch(pb::ForwardKinematicsBatchRequest {
+                    robot: case["robot"].as_str().unwrap().to_owned(),
+                    configurations: configurations.clone(),
+                    options: None,
+                })
+                .await;
+            if let Ok(a) = &answer {
+                let poses = &a.get_ref().poses;
+                if poses.len() != configurations.len() {
+                    return Err(format!(
+                        "{} poses for {} configurations",
+                        poses.len(),
+                        configurations.len()
+                    ));
+                }
+                for (i, (q, pose)) in configurations.iter().zip(poses).enumerate() {
+                    check_pb_pose(case, &q.joints, Some(pose))
+                        .map_err(|e| format!("poses[{i}]: {e}"))?;
+                }
+            }
+            answer.map(drop)
         }
         "register" => {
             let robot = match case["gen"]["kind"].as_str() {
@@ -332,7 +370,11 @@ async fn run_stream_cases(
         }
         let want = code_named(case["code"].as_str().unwrap());
         match (&resp.result, want) {
-            (Some(StreamResult::Pose(_)), Code::Ok) => {}
+            (Some(StreamResult::Pose(p)), Code::Ok) => {
+                if let Err(e) = check_pb_pose(case, &case_joints(case), Some(p)) {
+                    failures.push(format!("stream {name}: {e}"));
+                }
+            }
             (Some(StreamResult::Error(s)), w) if s.code == w as i32 => {
                 let got = rpc_status_fields(s).into_iter().next();
                 let want_field = case["field"].as_str().map(str::to_owned);
@@ -383,6 +425,18 @@ async fn the_grpc_corpus_gets_documented_statuses_and_the_server_keeps_answering
             .all(|r| r.source == pb::RobotSource::Builtin as i32)
     );
     let report = checker.finish().await;
+    // Today's corpus: 53 calls, of which the stream repeats the FK ones; a
+    // corpus file that lost cases fails.
+    assert!(
+        cases.len() >= 53,
+        "{} gRPC corpus cases (at least 53)",
+        cases.len()
+    );
+    assert!(
+        stream_cases.len() >= STREAM_CASES,
+        "{} stream cases",
+        stream_cases.len()
+    );
     assert!(
         failures.is_empty(),
         "{} failures:\n{}",

@@ -36,12 +36,18 @@ async fn fk_served(http: &str) {
     assert!(v["pose"].is_object(), "{v}");
 }
 
+/// The server's peak resident memory is within [`RSS_BOUND_MIB`]: the
+/// kernel's `VmHWM` (which the 50 ms samples can miss a short peak of), or
+/// the highest sample where that is higher (the kernel's RSS counters are
+/// per-CPU and may lag by a few pages).
 async fn assert_rss_bounded(watch: RssWatch, what: &str) {
     let (max, hwm) = watch.finish().await;
-    eprintln!("{what}: server VmRSS max {max} MiB, VmHWM {hwm} MiB");
+    eprintln!("{what}: server VmRSS max sampled {max} MiB, VmHWM {hwm} MiB");
+    assert!(hwm > 0, "{what}: VmHWM read as {hwm} MiB");
+    let peak = hwm.max(max);
     assert!(
-        max <= RSS_BOUND_MIB,
-        "{what}: RSS reached {max} MiB (> {RSS_BOUND_MIB})"
+        peak <= RSS_BOUND_MIB,
+        "{what}: peak RSS (VmHWM {hwm} MiB, sampled {max} MiB) > {RSS_BOUND_MIB} MiB"
     );
 }
 
@@ -204,16 +210,28 @@ async fn unread_batch_answers_are_bounded_and_dropped_after_the_write_timeout() 
     }))
     .await;
     eprintln!("unread batches: done after {:?}", started.elapsed());
-    let mut by_status = std::collections::BTreeMap::<String, usize>::new();
-    for (status, rest) in &results {
-        assert!(rest.is_some(), "a connection was still open: {status:?}");
-        *by_status.entry(format!("{status:?}")).or_default() += 1;
+    let mut by_status = std::collections::BTreeMap::<u16, usize>::new();
+    for (i, (status, rest)) in results.iter().enumerate() {
+        let status = status.unwrap_or_else(|| panic!("request {i} was never answered"));
+        assert!(
+            rest.is_some(),
+            "connection {i} was still open after its {status}"
+        );
+        *by_status.entry(status).or_default() += 1;
     }
     let whole = results
         .iter()
         .filter(|(_, r)| *r >= Some(3_080_535))
         .count();
     eprintln!("unread batches: answers by status {by_status:?}, {whole} read whole in the end");
+    let (served, refused) = (by_status.get(&200), by_status.get(&503));
+    assert_eq!(
+        served.unwrap_or(&0) + refused.unwrap_or(&0),
+        CLIENTS,
+        "only 200 and 503: {by_status:?}"
+    );
+    // 197 MB of answers against a 64 MiB budget: some fit, the rest do not.
+    assert!(served.is_some() && refused.is_some(), "{by_status:?}");
     checker.finish().await;
     assert_rss_bounded(watch, "64 unread 10,000-pose batch answers").await;
 }
@@ -459,19 +477,31 @@ async fn readyz_is_503_during_the_shutdown_grace_while_fk_is_served() {
     use tonic_health::pb::health_check_response::ServingStatus;
     use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
 
-    let app = spawn_app_with(|c| c.shutdown_grace = Duration::from_secs(4)).await;
+    // The grace is long (12 s) so that the checks below fit in it on a
+    // loaded runner; /readyz turns 503 at once (reported), asserted within
+    // a third of the grace.
+    const GRACE: Duration = Duration::from_secs(12);
+    let app = spawn_app_with(|c| c.shutdown_grace = GRACE).await;
     let mut health = HealthClient::new(channel(&app).await);
     let t = Instant::now();
     app.begin_shutdown();
     let mut saw_503 = false;
-    while t.elapsed() < Duration::from_millis(1500) {
+    while t.elapsed() < GRACE / 3 {
         if app.get("/readyz").await.status() == 503 {
             saw_503 = true;
             break;
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    assert!(saw_503, "/readyz never 503 during the grace");
+    assert!(
+        saw_503,
+        "/readyz not 503 within {:?} of the shutdown",
+        GRACE / 3
+    );
+    kinserve_testkit::report(&format!(
+        "/readyz 503 after {:?} of the shutdown",
+        t.elapsed()
+    ));
     fk_ok(&app, "planar_2dof", json!({"joints": [0, 0]})).await;
     let fresh = reqwest::Client::new()
         .post(format!("{}/v1/robots/planar_2dof/fk", app.http))
@@ -489,13 +519,10 @@ async fn readyz_is_503_during_the_shutdown_grace_while_fk_is_served() {
         .into_inner()
         .status;
     assert_eq!(status, ServingStatus::NotServing as i32);
-    assert!(
-        t.elapsed() < Duration::from_secs(4),
-        "checks ran past the grace"
-    );
+    assert!(t.elapsed() < GRACE, "checks ran past the grace");
     let addr = addr_of(&app.http);
     let mut closed = false;
-    while t.elapsed() < Duration::from_secs(4) + EVENTUALLY {
+    while t.elapsed() < GRACE + EVENTUALLY {
         if TcpStream::connect(&addr).await.is_err() {
             closed = true;
             break;

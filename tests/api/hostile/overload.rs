@@ -2,7 +2,7 @@
 //! panicking handler.
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use futures_util::SinkExt;
 use kinserve::api::grpc::pb;
@@ -96,82 +96,229 @@ async fn slowloris_connections_are_closed_after_the_header_timeout() {
 
 // ---------------------------------------------------------------- overload
 
-/// A flood of concurrent batch requests against a small concurrency limit:
-/// every answer is 200 or an immediate 503 (REST, with Retry-After) /
-/// RESOURCE_EXHAUSTED (gRPC), some are refused, none fails otherwise; the
-/// server answers normally afterwards.
+/// How long a refusal may take, from sending a small request to its 503 /
+/// RESOURCE_EXHAUSTED, while the permits are held by work that runs for
+/// seconds: a queued request would wait for that work. Loose (a busy
+/// two-core runner), a fraction of how long the holders run.
+const REFUSED_WITHIN: Duration = Duration::from_secs(1);
+
+/// One flood answer: the protocol's outcome and how long it took.
+#[derive(Debug)]
+enum Flood {
+    Served,
+    Refused(Duration),
+}
+
+/// 200 concurrent REST batches of 2,000 puma560 configurations: 200 or an
+/// immediate 503 problem+json with Retry-After, nothing else, every one answered.
+async fn rest_flood(app: &TestApp) -> Vec<tokio::task::JoinHandle<Flood>> {
+    let configs: Vec<[f64; 6]> = (0..2000).map(|i| [i as f64 * 1e-5; 6]).collect();
+    let body = Arc::new(json!({"configurations": configs}));
+    let client = reqwest::Client::new();
+    let url = format!("{}/v1/robots/puma560/fk/batch", app.http);
+    (0..200)
+        .map(|_| {
+            let (client, body, url) = (client.clone(), body.clone(), url.clone());
+            tokio::spawn(async move {
+                let t = Instant::now();
+                let r = client.post(url).json(&*body).send().await.unwrap();
+                let took = t.elapsed();
+                let status = r.status().as_u16();
+                let retry = r.headers().get("retry-after").is_some();
+                let ct = r
+                    .headers()
+                    .get("content-type")
+                    .map(|v| v.to_str().unwrap().to_owned());
+                let body = r.bytes().await.expect("the answer is read whole");
+                match (status, retry, ct.as_deref()) {
+                    (200, _, _) => {
+                        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+                        assert_eq!(v["poses"].as_array().map(Vec::len), Some(2000));
+                        Flood::Served
+                    }
+                    (503, true, Some("application/problem+json")) => Flood::Refused(took),
+                    other => panic!("REST flood answer {other:?}"),
+                }
+            })
+        })
+        .collect()
+}
+
+/// The same flood over gRPC on one channel: OK or RESOURCE_EXHAUSTED.
+async fn grpc_flood(app: &TestApp) -> Vec<tokio::task::JoinHandle<Flood>> {
+    let channel = crate::helpers::channel(app).await;
+    (0..200)
+        .map(|_| {
+            let mut c = KinematicsServiceClient::new(channel.clone());
+            let configurations = (0..2000)
+                .map(|i| pb::JointConfiguration {
+                    joints: vec![i as f64 * 1e-5; 6],
+                })
+                .collect();
+            tokio::spawn(async move {
+                let t = Instant::now();
+                let r = c
+                    .forward_kinematics_batch(pb::ForwardKinematicsBatchRequest {
+                        robot: "puma560".into(),
+                        configurations,
+                        options: None,
+                    })
+                    .await;
+                match r {
+                    Ok(answer) => {
+                        assert_eq!(answer.into_inner().poses.len(), 2000);
+                        Flood::Served
+                    }
+                    Err(s) if s.code() == Code::ResourceExhausted => Flood::Refused(t.elapsed()),
+                    Err(other) => panic!("gRPC flood answer {other:?}"),
+                }
+            })
+        })
+        .collect()
+}
+
+/// Served and refused counts of one protocol's flood, and its slowest refusal
+/// (reported: under a flood it includes uploading and scheduling, so the
+/// "at once" bound is checked by the probe test below); fails unless every
+/// request was answered, some were served and some refused.
+async fn tally(what: &str, tasks: Vec<tokio::task::JoinHandle<Flood>>) -> (usize, usize, Duration) {
+    let n = tasks.len();
+    let (mut ok, mut refused, mut slowest) = (0, 0, Duration::ZERO);
+    for t in tasks {
+        match t.await.expect("every flood request is answered") {
+            Flood::Served => ok += 1,
+            Flood::Refused(took) => {
+                refused += 1;
+                slowest = slowest.max(took);
+            }
+        }
+    }
+    assert_eq!(ok + refused, n, "{what}: every request answered");
+    assert!(ok > 0, "{what}: none served ({refused} refused)");
+    assert!(
+        refused > 0,
+        "{what}: none refused ({ok} served): a queue, not a budget"
+    );
+    (ok, refused, slowest)
+}
+
+/// A flood of concurrent batch requests against a small concurrency limit,
+/// per protocol: every REST request is answered 200 or 503 (problem+json,
+/// Retry-After), every gRPC call OK or RESOURCE_EXHAUSTED; each protocol
+/// has some served and some refused; the server answers normally
+/// afterwards. (That refusals come at once: the probe test below.) One client (127.0.0.1) may hold the whole budget
+/// (`client_share_percent = 100`): the test is about the total.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_flood_of_batches_gets_503_and_resource_exhausted_not_a_queue() {
     // The limit is below the 4 worker threads: gRPC batch handlers hold their
     // permit only while computing, so they can only be refused when more of
     // them compute at once than the limit allows.
-    let app = spawn_app_with(|c| c.max_concurrent_requests = 2).await;
-    let configs: Vec<[f64; 6]> = (0..2000).map(|i| [i as f64 * 1e-5; 6]).collect();
-    let body = Arc::new(json!({"configurations": configs}));
-    let client = reqwest::Client::new();
-    let mut rest = Vec::new();
-    for _ in 0..200 {
-        let (client, body, url) = (
-            client.clone(),
-            body.clone(),
-            format!("{}/v1/robots/puma560/fk/batch", app.http),
-        );
-        rest.push(tokio::spawn(async move {
-            let r = client.post(url).json(&*body).send().await.unwrap();
-            let status = r.status().as_u16();
-            let retry = r.headers().get("retry-after").is_some();
-            let ct = r
-                .headers()
-                .get("content-type")
-                .map(|v| v.to_str().unwrap().to_owned());
-            let _ = r.bytes().await;
-            (status, retry, ct)
-        }));
-    }
-    let channel = crate::helpers::channel(&app).await;
-    let mut grpc = Vec::new();
-    for _ in 0..200 {
-        let mut c = KinematicsServiceClient::new(channel.clone());
-        let configurations = (0..2000)
-            .map(|i| pb::JointConfiguration {
-                joints: vec![i as f64 * 1e-5; 6],
-            })
-            .collect();
-        grpc.push(tokio::spawn(async move {
-            c.forward_kinematics_batch(pb::ForwardKinematicsBatchRequest {
-                robot: "puma560".into(),
-                configurations,
-                options: None,
-            })
-            .await
-            .map(drop)
-            .map_err(|s| s.code())
-        }));
-    }
-    let (mut ok, mut refused) = (0, 0);
-    for t in rest {
-        match t.await.unwrap() {
-            (200, _, _) => ok += 1,
-            (503, true, Some(ct)) if ct == "application/problem+json" => refused += 1,
-            other => panic!("REST flood answer {other:?}"),
-        }
-    }
-    let (mut gok, mut grefused) = (0, 0);
-    for t in grpc {
-        match t.await.unwrap() {
-            Ok(()) => gok += 1,
-            Err(Code::ResourceExhausted) => grefused += 1,
-            Err(other) => panic!("gRPC flood answer {other:?}"),
-        }
-    }
-    assert!(ok > 0 && gok > 0, "some are served: {ok} {gok}");
-    assert!(refused + grefused > 0, "some are refused");
+    let app = spawn_app_with(|c| {
+        c.max_concurrent_requests = 2;
+        c.client_share_percent = 100;
+    })
+    .await;
+    let rest = rest_flood(&app).await;
+    let grpc = grpc_flood(&app).await;
+    let (ok, refused, rest_slowest) = tally("REST", rest).await;
+    let (gok, grefused, grpc_slowest) = tally("gRPC", grpc).await;
     // Afterwards: normal service.
     let checker = Checker::start(&app.http, &app.grpc, &app.ws).await;
     checker.finish().await;
     println!(
-        "flood (limit 2): REST {ok} ok / {refused} refused, gRPC {gok} ok / {grefused} refused"
+        "flood (limit 2): REST {ok} ok / {refused} refused (slowest refusal {rest_slowest:?}), \
+         gRPC {gok} ok / {grefused} refused (slowest refusal {grpc_slowest:?})"
     );
+}
+
+/// `n` unreachable IK targets (4 m away): a batch of them runs until the IK
+/// batch time limit.
+fn unreachable_targets(n: usize) -> Vec<serde_json::Value> {
+    let target = json!({"position": [4.0, 0, 0], "quaternion": {"w": 1, "x": 0, "y": 0, "z": 0}});
+    vec![target; n]
+}
+
+/// Refusals come at once on both protocols: with both request permits held
+/// by IK batches that run until their time limit (2 s: half the 4 s request
+/// timeout), a small REST FK request is answered 503 `overloaded` and a gRPC
+/// FK call RESOURCE_EXHAUSTED, each within [`REFUSED_WITHIN`] and while the
+/// holders still run (a queue would answer them after the holders, 200).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn refusals_past_the_request_limit_come_at_once_on_both_protocols() {
+    let app = spawn_app_with(|c| {
+        c.max_concurrent_requests = 2;
+        c.client_share_percent = 100;
+        c.request_timeout = Duration::from_secs(4);
+    })
+    .await;
+    let started = Instant::now();
+    let holders: Vec<_> = (0..2)
+        .map(|_| {
+            let req = app
+                .client
+                .post(format!("{}/v1/robots/puma560/ik/batch", app.http))
+                .json(&json!({"targets": unreachable_targets(400)}));
+            tokio::spawn(async move { req.send().await.map(|r| r.status().as_u16()) })
+        })
+        .collect();
+    // The holders are admitted once a probe is refused; until then a probe
+    // may still get a permit (and is served).
+    let mut probes = 0;
+    let rest_refusal = loop {
+        probes += 1;
+        let t = Instant::now();
+        let r = app
+            .post(
+                "/v1/robots/puma560/fk",
+                &json!({"joints": [0, 0, 0, 0, 0, 0]}),
+            )
+            .await;
+        let took = t.elapsed();
+        if r.status() == 503 {
+            let p: serde_json::Value = r.json().await.unwrap();
+            assert_eq!(p["type"], "urn:kinserve:problem:overloaded", "{p}");
+            break took;
+        }
+        assert_eq!(r.status(), 200);
+        assert!(probes < 100, "no probe refused while two IK batches run");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    };
+    let mut grpc = app.grpc_client().await;
+    let t = Instant::now();
+    let call = grpc
+        .forward_kinematics(pb::ForwardKinematicsRequest {
+            robot: "puma560".into(),
+            joints: vec![0.0; 6],
+            options: None,
+        })
+        .await;
+    let grpc_refusal = t.elapsed();
+    assert_eq!(
+        call.map(drop).map_err(|s| s.code()),
+        Err(Code::ResourceExhausted)
+    );
+    let holders_still_ran = holders.iter().all(|h| !h.is_finished());
+    let probed_at = started.elapsed();
+    for h in holders {
+        let status = h.await.unwrap().expect("the IK batch is answered");
+        assert!(status == 200 || status == 503, "IK holder: {status}");
+    }
+    let holders_ran = started.elapsed();
+    println!(
+        "refusal at once (limit 2): REST 503 in {rest_refusal:?}, gRPC RESOURCE_EXHAUSTED in \
+         {grpc_refusal:?}, {probed_at:?} after start; the IK holders ran {holders_ran:?}"
+    );
+    assert!(
+        holders_still_ran,
+        "the holders ended before the probes: nothing was tested"
+    );
+    for (what, took) in [("REST", rest_refusal), ("gRPC", grpc_refusal)] {
+        assert!(
+            took <= REFUSED_WITHIN,
+            "{what}: the refusal took {took:?} (> {REFUSED_WITHIN:?}): it waited, as if queued"
+        );
+    }
+    fk_ok(&app, "planar_2dof", json!({"joints": [0, 0]})).await;
 }
 
 // ---------------------------------------------------------------- panics

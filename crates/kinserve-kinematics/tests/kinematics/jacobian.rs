@@ -1,7 +1,9 @@
 //! The analytic geometric Jacobian against central differences of FK, for
 //! every robot in `robots/` and for random chains (both conventions,
 //! prismatic and fixed rows, base and tool), in both frames; manipulability,
-//! condition number and the singular flag against their definitions.
+//! condition number and the singular flag against their definitions, and
+//! against an independent SVD (of the central-difference Jacobian) at and
+//! near singular configurations.
 
 use kinserve_kinematics::{
     Chain, Convention, DhRow, Jacobian, JacobianFrame, JointKind, SINGULAR_THRESHOLD, Transform,
@@ -358,4 +360,79 @@ fn the_measures_do_not_depend_on_the_frame() {
             );
         }
     }
+}
+
+/// The central-difference Jacobian (step 1e-6) in the base frame, as the
+/// rows the measures use (linear rows only for up to 3 joints).
+fn fd_matrix(chain: &Chain, q: &[f64]) -> DMatrix<f64> {
+    let rows = if q.len() <= 3 { 3 } else { 6 };
+    let cols: Vec<[f64; 6]> = (0..q.len())
+        .map(|j| fd_column(chain, q, j, 1e-6, JacobianFrame::Base))
+        .collect();
+    DMatrix::from_fn(rows, q.len(), |r, c| cols[c][r])
+}
+
+/// Configurations at and near singularities, `(robot, q, what)`: PUMA 560's
+/// wrist (θ5 → 0), UR5e's elbow (q3 → 0) and wrist (q5 → 0), the planar
+/// arm stretched out (θ2 → 0); each at distances 0, 1e-9, 1e-7, 1e-5, 1e-3
+/// and 0.1 rad from the singularity.
+fn near_singular() -> Vec<(&'static str, Vec<f64>, String)> {
+    let mut out = Vec::new();
+    for eps in [0.0, 1e-9, 1e-7, 1e-5, 1e-3, 0.1] {
+        let cases: [(&str, Vec<f64>, &str); 4] = [
+            ("puma560", vec![0.1, -0.5, 0.4, 0.3, eps, 0.2], "wrist θ5"),
+            ("ur5e", vec![0.2, -1.0, eps, -1.2, 1.3, 0.4], "elbow q3"),
+            ("ur5e", vec![0.2, -1.0, 1.1, -1.2, eps, 0.4], "wrist q5"),
+            ("planar_2dof", vec![0.7, eps], "stretched θ2"),
+        ];
+        for (robot, q, what) in cases {
+            out.push((robot, q, format!("{what} = {eps:e}")));
+        }
+    }
+    out
+}
+
+/// The `singular` flag, the smallest singular value and the condition
+/// number against an independent SVD: nalgebra's, of the central-difference
+/// Jacobian, at and near singular configurations. By Weyl's inequality each
+/// singular value moves by at most ‖J − J_fd‖₂ ≤ ‖J − J_fd‖_F ≤ √(6n)·δ
+/// (δ: [`FD_TOLERANCE`] times the reach, the entrywise bound checked
+/// above), so σ_min must be within that of the independent one, the flag
+/// must agree wherever σ_min is farther than that from the threshold, and κ
+/// must lie in the interval the bounds give.
+#[test]
+fn singular_flag_and_condition_number_agree_with_an_independent_svd_near_singularities() {
+    let robots = all_robots();
+    let (mut flagged, mut clear) = (0, 0);
+    for (name, q, what) in near_singular() {
+        let robot = robots.iter().find(|r| r.name() == name).unwrap();
+        let chain = robot.chain();
+        let (_, jac) = chain.jacobian(&q, 1.0, JacobianFrame::Base);
+        let m = jac.measures();
+        let sv = fd_matrix(chain, &q).singular_values();
+        let (hi, lo) = (sv.max(), sv.min());
+        let delta = (6.0 * q.len() as f64).sqrt() * FD_TOLERANCE * reach(chain);
+        let smallest = *m.singular_values.last().unwrap();
+        let at = format!("{name} {what}: {m:?}, independent σ {hi:e} … {lo:e}");
+        assert_eq!(m.singular_values.len(), sv.len(), "{at}");
+        assert!(
+            (smallest - lo).abs() <= delta,
+            "{at}: σ_min off by more than {delta:e}"
+        );
+        if (lo - SINGULAR_THRESHOLD).abs() > delta {
+            assert_eq!(m.singular, lo < SINGULAR_THRESHOLD, "{at}: singular flag");
+            if m.singular { flagged += 1 } else { clear += 1 }
+        }
+        let low = (hi - delta) / (lo + delta);
+        assert!(m.condition_number >= low, "{at}: κ below {low:e}");
+        if lo > delta {
+            let high = (hi + delta) / (lo - delta);
+            assert!(m.condition_number <= high, "{at}: κ above {high:e}");
+        }
+    }
+    // Both sides of the threshold are reached near every singularity.
+    assert!(
+        flagged >= 8 && clear >= 8,
+        "{flagged} flagged, {clear} clear"
+    );
 }

@@ -25,6 +25,25 @@ impl Rng {
 /// Cody–Waite reduction leaves ~|x|·2^-53·(π/2 split error) and the polynomial ~1 ulp.
 const SINCOS_ABS_BOUND: f64 = 4e-16;
 
+/// The kernel tests say which kernels ran; under CI a kernel whose CPU
+/// flags the machine has (the CI machine has AVX-512) is among them, so a
+/// detection that drops it fails instead of silently testing less.
+#[test]
+fn the_kernels_tested_are_every_one_this_cpu_runs() {
+    let kernels = supported_kernels();
+    assert_eq!(
+        kernels.first(),
+        Some(&kinserve_kinematics::Kernel::Portable)
+    );
+    let flags = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    if kinserve_testkit::under_ci() && flags.contains(" avx512f") {
+        assert!(
+            kernels.contains(&kinserve_kinematics::Kernel::Avx512),
+            "AVX-512 CPU under CI, kernels tested: {kernels:?}"
+        );
+    }
+}
+
 #[test]
 fn sincos_matches_std_over_range() {
     let mut rng = Rng(1);
