@@ -235,7 +235,7 @@ impl Service {
         self.registry.nearest_names(name)
     }
 
-    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`]),
+    /// The closed-form FK of robot `name`'s DH table (see [`ClosedForm`](crate::model::ClosedForm)),
     /// computed once per robot version on the compute pool (`client`'s
     /// share) and kept; too large to print is [`Error::TooLarge`] on `links`.
     pub async fn closed_form(&self, client: ClientId, name: &str) -> Result<Arc<ClosedFormResult>> {
@@ -397,7 +397,7 @@ impl Service {
 
 /// Velocity and inverse kinematics: the Jacobian (cheap, on the caller's
 /// thread) and IK (up to [`ServiceLimits::ik_time_limit`] per target, so the
-/// async front doors run it through [`Service::ik_blocking`]).
+/// async front doors run it through [`Service::ik_on_pool`]).
 impl Service {
     /// Checked Jacobian of one configuration in the request's frame, with its measures.
     pub fn jacobian(&self, robot: &Robot, spec: &JacobianSpec) -> Result<JacobianAnswer> {

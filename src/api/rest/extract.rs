@@ -138,7 +138,7 @@ impl FromRequestParts<AppState> for RobotName {
     }
 }
 
-/// The request's client, for the per-client shares: what [`super::admit`]
+/// The request's client, for the per-client shares: what the admission middleware
 /// resolved from the peer address (and `X-Forwarded-For` behind a trusted
 /// proxy); [`ClientId::UNKNOWN`] when the transport gave no address.
 pub struct Client(pub ClientId);

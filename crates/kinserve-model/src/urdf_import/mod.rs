@@ -42,7 +42,7 @@ pub struct UrdfImport {
 /// Converts the chain of `req` into a robot model (metres, radians; one row
 /// per movable joint, named after it, with its limits; fixed joints folded
 /// into the frames, the base and the tool). The table is checked against the
-/// URDF's forward kinematics at [`CHECKS`] configurations to [`TOLERANCE`].
+/// URDF's forward kinematics at 300 configurations to 1e-12 of the chain's size.
 ///
 /// ```
 /// use kinserve_model::{ConventionSpec, ModelLimits, Robot, UrdfImport, import_urdf};
