@@ -22,6 +22,30 @@ use crate::model::{
 };
 use crate::registry::builtin;
 
+/// Writes the result to stdout. A closed pipe (`kinserve … | head`) is a
+/// normal end: the process exits 0 at once instead of panicking.
+fn write_out(args: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = stdout.write_fmt(args).and_then(|()| stdout.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("kinserve: cannot write the result: {e}");
+        std::process::exit(1);
+    }
+}
+
+/// `print!` to stdout through [`write_out`].
+macro_rules! out {
+    ($($t:tt)*) => { write_out(format_args!($($t)*)) };
+}
+
+/// `println!` to stdout through [`write_out`].
+macro_rules! outln {
+    ($($t:tt)*) => { write_out(format_args!("{}\n", format_args!($($t)*))) };
+}
+
 /// Runs the command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
@@ -96,7 +120,7 @@ fn validate(files: &[std::path::PathBuf]) -> ExitCode {
     let mut failed = 0;
     for f in files {
         match load_file(f) {
-            Some(robot) => println!(
+            Some(robot) => outln!(
                 "{}: ok ({}, {} joints)",
                 f.display(),
                 robot.name(),
@@ -138,7 +162,7 @@ fn fk(args: &FkArgs) -> ExitCode {
             };
             match serde_json::to_string_pretty(&out) {
                 Ok(s) => {
-                    println!("{s}");
+                    outln!("{s}");
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
@@ -163,7 +187,7 @@ fn angle_unit(deg: bool) -> AngleUnit {
 fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
     match serde_json::to_string_pretty(value) {
         Ok(s) => {
-            println!("{s}");
+            outln!("{s}");
             code
         }
         Err(e) => {
@@ -371,14 +395,14 @@ fn closed_form(args: &ClosedFormArgs) -> ExitCode {
         ClosedFormFormat::Latex => cf.transform.latex,
         ClosedFormFormat::Mathml => cf.transform.mathml,
     };
-    println!("{out}");
+    outln!("{out}");
     ExitCode::SUCCESS
 }
 
 fn urdf(args: &ModelArgs) -> ExitCode {
     match load_model(args) {
         Ok(robot) => {
-            print!("{}", to_urdf(&robot));
+            out!("{}", to_urdf(&robot));
             ExitCode::SUCCESS
         }
         Err(code) => code,
@@ -431,7 +455,7 @@ fn import_urdf_file(args: &ImportUrdfArgs) -> ExitCode {
     };
     match serde_json::to_string_pretty(&spec) {
         Ok(s) => {
-            println!("{s}");
+            outln!("{s}");
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -371,3 +371,34 @@ fn serve_refuses_out_of_range_durations_and_limits_by_name() {
         "at most 60s",
     );
 }
+
+/// A reader that stops early (`kinserve … | head -c 300`, `| true`) is a
+/// normal end for the CLI: exit 0 and no panic, for every printing command.
+#[test]
+fn a_closed_output_pipe_is_a_normal_end() {
+    for args in [
+        &[
+            "fk",
+            "--robot",
+            "puma560",
+            "--frames",
+            "--joints",
+            "0,0,0,0,0,0",
+        ][..],
+        &["closed-form", "--robot", "puma560"][..],
+        &["urdf", "--robot", "panda"][..],
+    ] {
+        let mut child = kinserve()
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Hang up before the answer is written (the process is still starting).
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {:?} {stderr}", out.status);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
