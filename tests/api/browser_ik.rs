@@ -276,3 +276,70 @@ async fn dragging_the_tool_moves_the_arm_by_ik_to_the_dragged_target() {
     );
     b.close().await;
 }
+
+/// A URDF pasted into the page is imported as a robot (`PUT` with
+/// `application/xml`), selected, and computes the same FK as the arm it came
+/// from; a URDF the import refuses shows the server's reason.
+#[tokio::test]
+async fn a_urdf_pasted_into_the_page_is_imported_and_shown() {
+    let Some((driver, chromium)) = browser_or_skip() else {
+        return;
+    };
+    let app = spawn_app().await;
+    let urdf = app.get("/v1/robots/ur5e/urdf").await.text().await.unwrap();
+    let b = Browser::start(&driver, &chromium).await;
+    b.goto(&format!("{}/", app.http)).await;
+    b.wait_until(
+        "the page is up",
+        "return document.getElementById('robot-select').value === 'puma560';",
+        json!([]),
+        "return {};",
+    )
+    .await;
+    b.exec(
+        "document.getElementById('urdf-text').value = arguments[0];
+         document.getElementById('urdf-name').value = 'page-arm';
+         document.getElementById('import-urdf').click(); return true;",
+        json!([urdf]),
+    )
+    .await;
+    b.wait_until(
+        "the imported arm selected",
+        "return document.getElementById('import-status').dataset.kind === 'ok'
+           && document.getElementById('robot-select').value === 'page-arm';",
+        json!([]),
+        "return {status: document.getElementById('import-status').textContent};",
+    )
+    .await;
+    // The server has it, with ur5e's FK.
+    let q = json!({"joints": [0.3, -1.1, 0.9, -0.4, 1.2, 0.5]});
+    let a: Value = app
+        .post("/v1/robots/page-arm/fk", &q)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let b5: Value = app
+        .post("/v1/robots/ur5e/fk", &q)
+        .await
+        .json()
+        .await
+        .unwrap();
+    crate::helpers::pose::assert_pose_eq(&a["pose"], &b5["pose"], 1e-12, "page import vs ur5e");
+    // A refusal shows the reason.
+    b.exec(
+        "document.getElementById('urdf-text').value = '<html/>';
+         document.getElementById('urdf-name').value = 'not-urdf';
+         document.getElementById('import-urdf').click(); return true;",
+        json!([]),
+    )
+    .await;
+    b.wait_until(
+        "the refusal shown",
+        "return document.getElementById('import-status').dataset.kind === 'error'
+           && document.getElementById('import-status').textContent.includes('not URDF');",
+        json!([]),
+        "return {status: document.getElementById('import-status').textContent};",
+    )
+    .await;
+}

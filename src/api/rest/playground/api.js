@@ -105,6 +105,20 @@ export async function putRobot(name, modelText, token) {
 }
 
 /**
+ * `PUT /v1/robots/{name}?tip_link=…&convention=…` with a URDF document
+ * (`application/xml`): the server imports it as a DH table.
+ */
+export async function importUrdf(name, urdf, { tipLink, convention, token } = {}) {
+  const q = new URLSearchParams();
+  if (tipLink) q.set('tip_link', tipLink);
+  if (convention) q.set('convention', convention);
+  const headers = { 'Content-Type': 'application/xml' };
+  if (token) headers.Authorization = `Bearer ${token}`;
+  const query = q.toString();
+  return request('PUT', `${robotPath(name)}${query ? `?${query}` : ''}`, { body: urdf, headers });
+}
+
+/**
  * Live FK over `ws(s)://host/v1/robots/{name}/fk/stream`.
  *
  * At most one request is in flight. `update(joints)` only remembers the newest

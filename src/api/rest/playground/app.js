@@ -1,7 +1,7 @@
 // kinserve playground: main module. Plain ES module, no third-party code.
 // Server strings only ever reach the page through textContent.
 
-import { ApiError, FkStream, fkBatch, getRobot, jacobianBatch, listRobots, putRobot } from './api.js';
+import { ApiError, FkStream, fkBatch, getRobot, importUrdf, jacobianBatch, listRobots, putRobot } from './api.js';
 import { jsonPathLines, lineForField } from './jsonlines.js';
 import { showClosedForm } from './closedform.js';
 import { View3D, formatLen } from './view3d.js';
@@ -859,6 +859,52 @@ async function register() {
   }
 }
 
+/** Imports the URDF in the text area as a robot and shows it. */
+async function importFromUrdf() {
+  const urdf = $('urdf-text').value;
+  const name = $('urdf-name').value.trim();
+  const status = (text, kind) => {
+    $('import-status').textContent = text;
+    $('import-status').dataset.kind = kind;
+  };
+  if (!name || !urdf.trim()) {
+    status('Give the robot a name and paste (or pick) a URDF.', 'error');
+    return;
+  }
+  const btn = $('import-urdf');
+  btn.disabled = true;
+  status(`Importing '${name}'…`, 'busy');
+  try {
+    const res = await importUrdf(name, urdf, {
+      tipLink: $('urdf-tip').value.trim(),
+      convention: $('urdf-convention').value,
+      token: $('token').value.trim(),
+    });
+    status(`Imported '${name}' with ${(res.data && res.data.links || []).length} DH rows (HTTP ${res.status}).`, 'ok');
+    if ((await loadRobotList(name)) === name) await selectRobot(name);
+  } catch (err) {
+    if (err instanceof ApiError) {
+      const p = err.problem;
+      const fields = (p.errors || []).map((e) => (e.field ? `${e.field}: ${e.message}` : e.message)).join('; ');
+      status(`${p.detail || p.title || 'Import failed'}${fields && !String(p.detail).includes(fields) ? ` (${fields})` : ''} (HTTP ${err.status})`, 'error');
+    } else {
+      status(`Import failed: ${errText(err)}`, 'error');
+    }
+  } finally {
+    btn.disabled = false;
+  }
+}
+
+/** A picked URDF file fills the text area (and the name, when empty). */
+async function pickUrdfFile(ev) {
+  const file = ev.target.files && ev.target.files[0];
+  if (!file) return;
+  $('urdf-text').value = await file.text();
+  if (!$('urdf-name').value.trim()) {
+    $('urdf-name').value = file.name.replace(/\.[^.]*$/, '').toLowerCase().replace(/[^a-z0-9_-]+/g, '-').replace(/^-+/, '');
+  }
+}
+
 // ------------------------------------------------------------------- init --
 
 function init() {
@@ -891,6 +937,14 @@ function init() {
     register().catch((err) => setRegisterStatus(`Registration failed: ${errText(err)}`, 'error'));
   });
   $('reset-editor').addEventListener('click', () => state.model && prefillEditor(state.model));
+  $('import-urdf').addEventListener('click', () => {
+    importFromUrdf().catch((err) => {
+      $('import-status').textContent = `Import failed: ${errText(err)}`;
+    });
+  });
+  $('urdf-file').addEventListener('change', (ev) => {
+    pickUrdfFile(ev).catch(() => {});
+  });
   const ed = $('model-editor');
   let t = null;
   ed.addEventListener('input', () => {
