@@ -456,3 +456,28 @@ fn an_unknown_base_and_a_chain_over_the_model_limits_are_refused_before_converti
         "{e}"
     );
 }
+
+/// Imported arms are classified for analytic IK like the built-ins they
+/// came from (the class is read off the chain's axes, whatever the frames).
+#[test]
+fn imported_arms_get_the_analytic_ik_class_of_their_source() {
+    use kinserve_kinematics::analytic_ik::AnalyticIk;
+    let mut classified = 0;
+    for original in robots() {
+        let Ok(source) = AnalyticIk::new(original.chain()) else {
+            continue;
+        };
+        classified += 1;
+        for convention in CONVENTIONS {
+            let name = original.name();
+            let imported =
+                robot(import_urdf(&request(name, &to_urdf(&original), convention)).unwrap());
+            let class = AnalyticIk::new(imported.chain()).map(|a| a.class());
+            assert_eq!(class.ok(), Some(source.class()), "{name} {convention:?}");
+        }
+    }
+    assert!(
+        classified >= 9,
+        "PUMA, IRB 140, KR 5, inline_6dof and the five URs: {classified}"
+    );
+}
