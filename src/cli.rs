@@ -96,12 +96,17 @@ fn serve(config: ServeConfig) -> ExitCode {
 fn print_error(label: &str, e: &Error) {
     let violations = e.violations();
     if violations.is_empty() {
-        eprintln!("{label}: {e}");
+        eprintln!("{label}: {}", on_the_command_line(&e.to_string()));
     } else {
         for v in violations {
-            eprintln!("{label}: {v}");
+            eprintln!("{label}: {}", on_the_command_line(&v.to_string()));
         }
     }
+}
+
+/// The API's hints in the command line's words (`--deg`, not `angle_unit "deg"`).
+fn on_the_command_line(message: &str) -> String {
+    message.replace("send angle_unit \"deg\"", "pass --deg")
 }
 
 /// A robot file, or its errors printed (a missing file said plainly, not as malformed input).

@@ -402,3 +402,16 @@ fn a_closed_output_pipe_is_a_normal_end() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// The degrees hint speaks the command line's language: `--deg`.
+#[test]
+fn the_degrees_hint_names_the_flag() {
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "0,90,-90,0,0,0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("pass --deg"), "{stderr}");
+    assert!(!stderr.contains("angle_unit"), "{stderr}");
+}
