@@ -167,7 +167,7 @@ fn link(name: Option<String>) -> Option<String> {
 }
 
 /// The model a registration body stands for: the model itself, or the
-/// URDF's imported (on the blocking pool). `path` is PUT's name: a name in
+/// URDF's imported (on the compute pool, under the caller's share). `path` is PUT's name: a name in
 /// the body must match it.
 pub async fn robot_spec(
     (service, client): (&crate::service::Service, crate::compute::ClientId),
