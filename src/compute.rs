@@ -120,7 +120,7 @@ struct Shares {
 #[derive(Debug)]
 pub struct FairPermit {
     _total: Option<OwnedSemaphorePermit>,
-    _share: ShareGuard,
+    _share: Option<ShareGuard>,
 }
 
 #[derive(Debug)]
@@ -190,10 +190,20 @@ impl FairBudget {
         self.total.available_permits()
     }
 
+    /// One more unit of `client`'s share, or [`Error::Overloaded`] when it
+    /// holds its share already. A share of the whole budget (100 %) is no
+    /// per-client cap at all: nothing is counted.
+    fn take_share(&self, client: ClientId) -> Result<Option<ShareGuard>> {
+        if self.shares.share >= self.size {
+            return Ok(None);
+        }
+        self.shares.take(client).map(Some).ok_or(Error::Overloaded)
+    }
+
     /// A unit for `client` now, or [`Error::Overloaded`] (nothing taken)
     /// when the client holds its share or the budget is spent.
     pub fn try_acquire(&self, client: ClientId) -> Result<FairPermit> {
-        let share = self.shares.take(client).ok_or(Error::Overloaded)?;
+        let share = self.take_share(client)?;
         let total = self
             .total
             .clone()
@@ -205,10 +215,10 @@ impl FairBudget {
         })
     }
 
-    /// A unit for `client`: refused at once when the client holds its share,
-    /// else waits for a free unit (the caller bounds the wait).
+    /// A unit for `client`: refused at once when the client holds its share
+    /// (below 100 %), else waits for a free unit (the caller bounds the wait).
     pub async fn acquire(&self, client: ClientId) -> Result<FairPermit> {
-        let share = self.shares.take(client).ok_or(Error::Overloaded)?;
+        let share = self.take_share(client)?;
         let total = self.total.clone().acquire_owned().await.ok();
         Ok(FairPermit {
             _total: total,
@@ -320,6 +330,30 @@ mod tests {
         );
         let _c = b.try_acquire(ip("127.0.0.3")).unwrap();
         assert_eq!(b.available(), 0);
+    }
+
+    #[tokio::test]
+    async fn a_share_of_the_whole_budget_waits_for_a_unit_instead_of_refusing() {
+        let b = FairBudget::new(2, 2);
+        let me = ip("127.0.0.1");
+        let first = b.acquire(me).await.unwrap();
+        let _second = b.acquire(me).await.unwrap();
+        assert!(b.try_acquire(me).is_err(), "the budget is spent");
+        let third = tokio::spawn({
+            let b = b.clone();
+            async move { b.acquire(me).await.map(|_| ()) }
+        });
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        assert!(
+            !third.is_finished(),
+            "it waits for a unit, it is not refused"
+        );
+        drop(first);
+        assert!(third.await.unwrap().is_ok());
+        // Below 100 %, a client at its share is refused at once.
+        let half = FairBudget::new(2, 1);
+        let _mine = half.acquire(me).await.unwrap();
+        assert!(half.acquire(me).await.is_err());
     }
 
     #[test]

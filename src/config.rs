@@ -477,7 +477,8 @@ pub struct ServeConfig {
     #[arg(long, env = "KINSERVE_COMPUTE_THREADS", default_value_t = 0, value_parser = parse_at_most::<4096>)]
     pub compute_threads: usize,
     /// Percent of each budget one client may hold: requests in flight,
-    /// streams, batch slots, compute permits (at least one of each). A client
+    /// streams, batch slots, compute permits (at least one of each); 100: no
+    /// per-client cap (batches then queue for a slot as before). A client
     /// is a peer IP address (IPv6: its /64), or the last X-Forwarded-For
     /// address with --trust-forwarded-for.
     #[arg(long, env = "KINSERVE_CLIENT_SHARE_PERCENT", default_value_t = 50, value_parser = clap::value_parser!(u8).range(1..=100))]
