@@ -165,16 +165,7 @@ fn fk(args: &FkArgs) -> ExitCode {
                 frame_matrices: None,
                 frame_positions: None,
             };
-            match serde_json::to_string_pretty(&out) {
-                Ok(s) => {
-                    outln!("{s}");
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    eprintln!("cannot print the result: {e}");
-                    ExitCode::FAILURE
-                }
-            }
+            print_json(&out, ExitCode::SUCCESS)
         }
         Err(e) => {
             print_error("--joints", &e.into());
@@ -458,16 +449,7 @@ fn import_urdf_file(args: &ImportUrdfArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match serde_json::to_string_pretty(&spec) {
-        Ok(s) => {
-            outln!("{s}");
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("cannot print the result: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    print_json(&spec, ExitCode::SUCCESS)
 }
 
 /// A robot name from a file name: the part before the first `.`, lowercased,

@@ -414,10 +414,28 @@ impl Service {
         robot: &Robot,
         spec: &JacobianBatchSpec,
     ) -> Result<Vec<JacobianAnswer>> {
+        self.jacobian_batch_cancellable(robot, spec, &AtomicBool::new(false))
+    }
+
+    /// [`Service::jacobian_batch`] that stops (checked every [`CANCEL_CHUNK`]
+    /// configurations) once `cancel` is set.
+    fn jacobian_batch_cancellable(
+        &self,
+        robot: &Robot,
+        spec: &JacobianBatchSpec,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<JacobianAnswer>> {
         let c = &spec.configurations;
         self.check_batch_size(c.len())?;
         let batch = robot.check_batch(&c.values, &c.lens, &spec.options)?;
-        Ok(batch.vectors().map(|q| q.jacobian(spec.frame)).collect())
+        let mut out = Vec::with_capacity(batch.len());
+        for (i, q) in batch.vectors().enumerate() {
+            if i.is_multiple_of(CANCEL_CHUNK) && cancelled(cancel) {
+                return Err(stopped());
+            }
+            out.push(q.jacobian(spec.frame));
+        }
+        Ok(out)
     }
 
     /// Validates and solves one IK request on this thread (up to
@@ -553,19 +571,12 @@ impl Service {
         robot: Arc<Entry>,
         spec: JacobianBatchSpec,
     ) -> Result<Vec<JacobianAnswer>> {
+        // Refused before a permit is taken; checked again inside (cheap).
         self.check_batch_size(spec.configurations.len())?;
+        let this = Arc::clone(self);
         self.pool
             .run(client, move |cancel| {
-                let c = &spec.configurations;
-                let batch = robot.robot.check_batch(&c.values, &c.lens, &spec.options)?;
-                let mut out = Vec::with_capacity(batch.len());
-                for (i, q) in batch.vectors().enumerate() {
-                    if i.is_multiple_of(CANCEL_CHUNK) && cancelled(cancel) {
-                        return Err(stopped());
-                    }
-                    out.push(q.jacobian(spec.frame));
-                }
-                Ok(out)
+                this.jacobian_batch_cancellable(&robot.robot, &spec, cancel)
             })
             .await
     }
