@@ -401,6 +401,7 @@ class GrpcOps:
 
     def ik(
         self,
+        /,
         robot: str,
         target: ArrayLike | Mapping[str, Any],
         *,
@@ -430,6 +431,7 @@ class GrpcOps:
 
     def ik_batch(
         self,
+        /,
         robot: str,
         targets: ArrayLike,
         *,

@@ -29,7 +29,7 @@ ENUM_PREFIX = {
 }
 
 
-def enum_value(enum: Any, text: str | None) -> int:
+def enum_value(enum: Any, text: str | None) -> Any:
     """The enum number of a REST name (``"standard"`` -> ``CONVENTION_STANDARD``);
     unknown names give 0 (unspecified), which the server refuses naming the field."""
     if text is None:

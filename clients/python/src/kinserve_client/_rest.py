@@ -338,6 +338,7 @@ class RestOps:
 
     def ik(
         self,
+        /,
         robot: str,
         target: ArrayLike | Mapping[str, Any],
         *,
@@ -360,6 +361,7 @@ class RestOps:
 
     def ik_batch(
         self,
+        /,
         robot: str,
         targets: ArrayLike,
         *,

@@ -22,6 +22,7 @@ from typing import (
     Mapping,
     ParamSpec,
     TypeVar,
+    cast,
 )
 
 import grpc
@@ -52,7 +53,7 @@ def _grpc_target(address: str) -> str:
 
 
 def _status_bin(e: grpc.RpcError) -> bytes | None:
-    trailing = e.trailing_metadata() if hasattr(e, "trailing_metadata") else None
+    trailing: Any = e.trailing_metadata() if hasattr(e, "trailing_metadata") else None
     for key, value in trailing or ():
         if key == "grpc-status-details-bin":
             return value if isinstance(value, bytes) else value.encode()
@@ -76,9 +77,10 @@ def _op_sync(op: Callable[Concatenate[RestOps, P], RestCall[R]]) -> Callable[Con
 
     @functools.wraps(op)
     def method(self: Client, *args: P.args, **kwargs: P.kwargs) -> R:
-        return self._run(getattr(self._ops, name)(*args, **kwargs))
+        result: R = self._run(getattr(self._ops, name)(*args, **kwargs))
+        return result
 
-    return method
+    return cast("Callable[Concatenate[Client, P], R]", method)
 
 
 def _op_async(
@@ -88,9 +90,10 @@ def _op_async(
 
     @functools.wraps(op)
     async def method(self: AsyncClient, *args: P.args, **kwargs: P.kwargs) -> R:
-        return await self._run(getattr(self._ops, name)(*args, **kwargs))
+        result: R = await self._run(getattr(self._ops, name)(*args, **kwargs))
+        return result
 
-    return method
+    return cast("Callable[Concatenate[AsyncClient, P], Coroutine[Any, Any, R]]", method)
 
 
 class _Base:
@@ -109,7 +112,9 @@ class _Base:
         self._token = token
         self._ops: Any = RestOps() if transport == "rest" else GrpcOps()
         self._headers = {} if token is None else {"Authorization": f"Bearer {token}"}
-        self._metadata = [] if token is None else [("authorization", f"Bearer {token}")]
+        self._metadata: tuple[tuple[str, str | bytes], ...] = (
+            () if token is None else (("authorization", f"Bearer {token}"),)
+        )
 
 
 class Client(_Base):

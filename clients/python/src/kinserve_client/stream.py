@@ -119,7 +119,7 @@ class Stream:
         … and any newer ones, passed through). Returns its id."""
         body: dict[str, JSON] = {"target": target_json(target)}
         for key, value in ik.items():
-            body[key] = joint_vector(value) if key == "seed" and value is not None else value  # type: ignore[arg-type]
+            body[key] = joint_vector(value) if key == "seed" and value is not None else value
         body.setdefault("angle_unit", self._defaults["angle_unit"])
         return await self._submit({"ik": body})
 
@@ -177,7 +177,7 @@ def _reply_from_json(m: Mapping[str, Any], requests: Mapping[int, Mapping[str, J
     request = requests.get(rid, {})
     if "ik" in request:
         return StreamReply(rid, ik=parse_ik_item(m))
-    fmt: PoseFormat = request.get("pose_format", "full")  # type: ignore[assignment]
+    fmt: PoseFormat = request.get("pose_format", "full")
     fk = fk_result(m, fmt)
     jac = jacobian_item(m) if "jacobian" in m else None
     lt = None
@@ -229,7 +229,8 @@ class _GrpcWire:
             raise grpc_error(e) from None
         if m is grpc.aio.EOF:
             return None
-        return stream_reply(m, requests)
+        reply: StreamReply = stream_reply(m, requests)
+        return reply
 
     async def close(self) -> None:
         try:
