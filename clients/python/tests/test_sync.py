@@ -98,20 +98,29 @@ def _ik_schema_has(server: Server, field: str) -> bool:
 
 
 def test_unknown_ik_options_are_passed_through(client: kc.Client, server: Server, transport: str) -> None:
-    """Options without a parameter (issue 23's ``solutions``) reach the server:
-    it answers them once it knows them and names them while it does not."""
+    """Options without a parameter (issue 23's ``solutions``, ``solver``) reach
+    the server: it answers them once it knows them and names them while it
+    does not; the new answer fields arrive in ``extra``, the same on both
+    transports."""
     target = client.fk("puma560", Q).transform
-    if _ik_schema_has(server, "solutions"):
-        r = client.ik("puma560", target, solutions="all")
-        assert r.converged
-        return
-    if transport == "grpc":
-        with pytest.raises(ValueError, match="solutions"):
+    if not _ik_schema_has(server, "solutions"):
+        if transport == "grpc":
+            with pytest.raises(ValueError, match="solutions"):
+                client.ik("puma560", target, solutions="all")
+            return
+        with pytest.raises(kc.InvalidArgument) as e:
             client.ik("puma560", target, solutions="all")
+        assert "solutions" in e.value.detail
         return
-    with pytest.raises(kc.InvalidArgument) as e:
-        client.ik("puma560", target, solutions="all")
-    assert "solutions" in e.value.detail
+    r = client.ik("puma560", target, solutions="all", solver="analytic")
+    assert r.converged and r.extra.get("solver") == "analytic"
+    rest = server.raw("POST", "/v1/robots/puma560/ik", {"target": {"matrix": target.tolist()}, "solutions": "all", "solver": "analytic"})
+    solutions = r.extra["solutions"]
+    assert len(solutions) == len(rest["solutions"]) >= 2
+    for got, want in zip(solutions, rest["solutions"]):
+        assert np.allclose(got["joints"], want["joints"], atol=EXACT)
+    reached = client.fk_batch("puma560", [s["joints"] for s in solutions])
+    assert np.allclose(reached, target, atol=1e-9)
 
 
 def test_link_transforms_multiply_to_the_pose(client: kc.Client) -> None:

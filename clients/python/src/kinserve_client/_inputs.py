@@ -32,7 +32,7 @@ def proto_sha256(proto_dir: Path) -> str:
 
 def canonical_json(value: Any) -> bytes:
     """The JSON text hashed for an OpenAPI document: keys sorted, no spaces,
-    non-ASCII kept (the same rule as the TypeScript client's build)."""
+    non-ASCII kept (the TypeScript build hashes its own canonical form)."""
     return json.dumps(
         value, sort_keys=True, separators=(",", ":"), ensure_ascii=False
     ).encode()
