@@ -5,6 +5,7 @@ mod browser_link;
 mod closed_form;
 mod contract;
 mod crash;
+mod docs_examples;
 mod errors;
 mod etags;
 mod generated_clients;
