@@ -222,13 +222,14 @@ fn scalar_lists_on_one_line(pretty: &str) -> String {
                 .map(|l| l.trim())
                 .collect();
             let close = lines.get(i + 1 + items.len()).map(|l| l.trim());
-            if !items.is_empty() && items.iter().all(|item| is_scalar(item)) {
-                if let Some(close) = close {
-                    let joined = items.join(" ");
-                    out.push(format!("{line}{joined}{close}"));
-                    i += items.len() + 2;
-                    continue;
-                }
+            if let Some(close) = close
+                && !items.is_empty()
+                && items.iter().all(|item| is_scalar(item))
+            {
+                let joined = items.join(" ");
+                out.push(format!("{line}{joined}{close}"));
+                i += items.len() + 2;
+                continue;
             }
         }
         out.push(line.to_string());
@@ -240,8 +241,7 @@ fn scalar_lists_on_one_line(pretty: &str) -> String {
 /// Whether one line of pretty JSON is a scalar array element (with its comma).
 fn is_scalar(item: &str) -> bool {
     let value = item.strip_suffix(',').unwrap_or(item);
-    serde_json::from_str::<serde_json::Value>(value)
-        .is_ok_and(|v| !(v.is_array() || v.is_object()))
+    serde_json::from_str::<serde_json::Value>(value).is_ok_and(|v| !(v.is_array() || v.is_object()))
 }
 
 fn jacobian(args: &JacobianArgs) -> ExitCode {
@@ -588,9 +588,15 @@ mod tests {
         });
         let pretty = serde_json::to_string_pretty(&value).unwrap();
         let compact = scalar_lists_on_one_line(&pretty);
-        assert!(compact.contains("\n    [1.0, -0.0, 0.0, 0.4521],\n"), "{compact}");
+        assert!(
+            compact.contains("\n    [1.0, -0.0, 0.0, 0.4521],\n"),
+            "{compact}"
+        );
         assert!(compact.contains("\"names\": [\"a\", \"b,]\"]"), "{compact}");
-        assert!(compact.contains("\"position\": [0.0, 1.0, 2.0]"), "{compact}");
+        assert!(
+            compact.contains("\"position\": [0.0, 1.0, 2.0]"),
+            "{compact}"
+        );
         let back: serde_json::Value = serde_json::from_str(&compact).unwrap();
         assert_eq!(back, value, "only whitespace moved");
     }

@@ -96,9 +96,8 @@ fn tools_needed(runner: Runner, text: &str) -> Vec<&'static str> {
 
 /// Whether `tool` is on `PATH`.
 fn on_path(tool: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|paths| {
-        std::env::split_paths(&paths).any(|dir| dir.join(tool).is_file())
-    })
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(tool).is_file()))
 }
 
 /// Node's `--experimental-websocket` where `WebSocket` is not a global yet
@@ -108,7 +107,14 @@ fn node_flags() -> Vec<&'static str> {
     let major: u32 = out
         .ok()
         .and_then(|o| String::from_utf8(o.stdout).ok())
-        .and_then(|v| v.trim().trim_start_matches('v').split('.').next()?.parse().ok())
+        .and_then(|v| {
+            v.trim()
+                .trim_start_matches('v')
+                .split('.')
+                .next()?
+                .parse()
+                .ok()
+        })
         .unwrap_or(22);
     if major < 22 {
         vec!["--experimental-websocket"]
@@ -141,7 +147,12 @@ fn path_with_kinserve() -> std::ffi::OsString {
 }
 
 /// Runs one block's text in `cwd` against `app`: its stdout, or why it failed.
-async fn run_block(runner: Runner, text: &str, cwd: &Path, app: &TestApp) -> Result<String, String> {
+async fn run_block(
+    runner: Runner,
+    text: &str,
+    cwd: &Path,
+    app: &TestApp,
+) -> Result<String, String> {
     let (file, program, mut args) = match runner {
         Runner::Bash => (".block.sh", "bash", vec!["-eo", "pipefail"]),
         Runner::Python => (".block.py", "python3", vec![]),
@@ -177,7 +188,9 @@ async fn run_block(runner: Runner, text: &str, cwd: &Path, app: &TestApp) -> Res
 
 /// Whether the block after `i` (skipping nothing) is its documented output.
 fn has_output(blocks: &[Block], i: usize) -> bool {
-    blocks.get(i + 1).is_some_and(|b| b.marker == Some(Marker::Output))
+    blocks
+        .get(i + 1)
+        .is_some_and(|b| b.marker == Some(Marker::Output))
 }
 
 /// Checks a block that is data, not a program: JSON must parse (a robot
@@ -186,13 +199,16 @@ fn check_data(page: &str, block: &Block, walk: &mut Walk) {
     let at = format!("{page}:{}", block.line);
     match (block.lang.as_str(), &block.marker) {
         ("json", _) => {
-            let is_model = block.text.contains("\"convention\"") && block.text.contains("\"links\"");
+            let is_model =
+                block.text.contains("\"convention\"") && block.text.contains("\"links\"");
             if is_model {
                 if let Err(e) = Robot::from_json(block.text.as_bytes(), &ModelLimits::default()) {
-                    walk.failures.push(format!("{at}: the model does not validate: {e:?}"));
+                    walk.failures
+                        .push(format!("{at}: the model does not validate: {e:?}"));
                 }
             } else if let Err(e) = serde_json::from_str::<serde_json::Value>(&block.text) {
-                walk.failures.push(format!("{at}: the JSON block does not parse: {e}"));
+                walk.failures
+                    .push(format!("{at}: the JSON block does not parse: {e}"));
             }
         }
         (_, Some(Marker::File(_))) => {}
@@ -216,12 +232,18 @@ async fn walk_page(page: &str, text: &str) -> Walk {
         match &block.marker {
             Some(Marker::NotRun(reason)) => {
                 if reason.is_empty() {
-                    walk.failures.push(format!("{at}: `not run` needs a reason"));
+                    walk.failures
+                        .push(format!("{at}: `not run` needs a reason"));
                 }
                 continue;
             }
             Some(Marker::Output) => {
-                compare_documented(&at, block, std::mem::replace(&mut last, Last::Nothing), &mut walk);
+                compare_documented(
+                    &at,
+                    block,
+                    std::mem::replace(&mut last, Last::Nothing),
+                    &mut walk,
+                );
                 continue;
             }
             Some(Marker::File(name)) => {
@@ -238,7 +260,11 @@ async fn walk_page(page: &str, text: &str) -> Walk {
             .filter(|t| !on_path(t))
             .collect();
         if !missing.is_empty() {
-            skip_unless_ci(TEST, &format!("{at} needs {}", missing.join(", ")), ".ci/run installs them");
+            skip_unless_ci(
+                TEST,
+                &format!("{at} needs {}", missing.join(", ")),
+                ".ci/run installs them",
+            );
             walk.skipped += 1;
             last = Last::Unavailable;
             continue;
@@ -251,7 +277,10 @@ async fn walk_page(page: &str, text: &str) -> Walk {
                         "{at}: printed a problem the page does not show as its output:\n{stdout}"
                     ));
                 }
-                last = Last::Ran(Ran { line: block.line, stdout });
+                last = Last::Ran(Ran {
+                    line: block.line,
+                    stdout,
+                });
             }
             Err(why) => {
                 walk.failures.push(format!("{at}: {why}"));
@@ -269,7 +298,8 @@ fn compare_documented(at: &str, block: &Block, last: Last, walk: &mut Walk) {
         Last::Ran(ran) => ran,
         Last::Unavailable => return,
         Last::Nothing => {
-            walk.failures.push(format!("{at}: an output with no runnable block before it"));
+            walk.failures
+                .push(format!("{at}: an output with no runnable block before it"));
             return;
         }
     };
@@ -286,7 +316,9 @@ fn compare_documented(at: &str, block: &Block, last: Last, walk: &mut Walk) {
 async fn every_block_of_the_docs_runs_as_shown_or_is_marked() {
     let pages = pages();
     assert!(pages.len() > 10, "README.md and docs/*.md are found");
-    let walks = futures_util::future::join_all(pages.iter().map(|(page, text)| walk_page(page, text))).await;
+    let walks =
+        futures_util::future::join_all(pages.iter().map(|(page, text)| walk_page(page, text)))
+            .await;
     let mut failures = Vec::new();
     let (mut ran, mut compared, mut skipped) = (0, 0, 0);
     for walk in walks {
@@ -299,8 +331,16 @@ async fn every_block_of_the_docs_runs_as_shown_or_is_marked() {
         "docs examples: {ran} blocks ran, {compared} outputs compared, {skipped} skipped, over {} pages",
         pages.len()
     ));
-    assert!(failures.is_empty(), "{} docs blocks fail:\n\n{}", failures.len(), failures.join("\n\n"));
-    assert!(ran >= 30 && compared >= 10, "the docs run examples ({ran}) and show outputs ({compared})");
+    assert!(
+        failures.is_empty(),
+        "{} docs blocks fail:\n\n{}",
+        failures.len(),
+        failures.join("\n\n")
+    );
+    assert!(
+        ran >= 30 && compared >= 10,
+        "the docs run examples ({ran}) and show outputs ({compared})"
+    );
 }
 
 /// Every page under docs/ is reachable from the index, docs/README.md.
@@ -317,5 +357,8 @@ fn every_docs_page_is_linked_from_the_index() {
         .filter_map(|(p, _)| p.strip_prefix("docs/"))
         .filter(|name| *name != "README.md" && !index.contains(&format!("]({name}")))
         .collect();
-    assert!(unlinked.is_empty(), "docs/README.md links no page {unlinked:?}: add a line for each");
+    assert!(
+        unlinked.is_empty(),
+        "docs/README.md links no page {unlinked:?}: add a line for each"
+    );
 }

@@ -432,7 +432,10 @@ fn matrices_print_one_row_per_line() {
         "[0.0, -0.0, 1.0, 1.10363],",
         "[0.0, 0.0, 0.0, 1.0]",
     ] {
-        assert!(lines.contains(&row), "row {row} on a line of its own:\n{text}");
+        assert!(
+            lines.contains(&row),
+            "row {row} on a line of its own:\n{text}"
+        );
     }
     assert!(
         lines.contains(&"\"position\": [0.4521, -0.15005, 1.10363],"),
@@ -445,7 +448,10 @@ fn matrices_print_one_row_per_line() {
         .output()
         .unwrap();
     let text = String::from_utf8(out.stdout.clone()).unwrap();
-    let rows = text.lines().filter(|l| l.trim().starts_with("[0.0, ")).count();
+    let rows = text
+        .lines()
+        .filter(|l| l.trim().starts_with("[0.0, "))
+        .count();
     assert!(rows >= 6, "six Jacobian rows, one per line:\n{text}");
     stdout_json(&out);
 }

@@ -53,8 +53,17 @@ pub(crate) fn fenced_blocks(page: &str) -> Vec<Block> {
             text.push('\n');
             i += 1;
         }
-        assert!(i < lines.len(), "fence opened at line {} is never closed", start + 1);
-        blocks.push(Block { line: start + 1, lang, text, marker });
+        assert!(
+            i < lines.len(),
+            "fence opened at line {} is never closed",
+            start + 1
+        );
+        blocks.push(Block {
+            line: start + 1,
+            lang,
+            text,
+            marker,
+        });
         i += 1;
     }
     blocks
@@ -62,7 +71,11 @@ pub(crate) fn fenced_blocks(page: &str) -> Vec<Block> {
 
 /// The marker a line holds, if it is an HTML comment of its own.
 fn marker_of(line: &str) -> Option<Marker> {
-    let body = line.trim().strip_prefix("<!--")?.strip_suffix("-->")?.trim();
+    let body = line
+        .trim()
+        .strip_prefix("<!--")?
+        .strip_suffix("-->")?
+        .trim();
     Some(if let Some(reason) = body.strip_prefix("not run:") {
         Marker::NotRun(reason.trim().to_string())
     } else if body == "output" {
@@ -112,7 +125,10 @@ fn tokens(text: &str) -> Vec<Token> {
             out.push(Token::Num(s, v));
             i = end;
         } else if c.is_alphanumeric() || c == '_' {
-            let end = i + chars[i..].iter().take_while(|c| c.is_alphanumeric() || **c == '_').count();
+            let end = i + chars[i..]
+                .iter()
+                .take_while(|c| c.is_alphanumeric() || **c == '_')
+                .count();
             out.push(Token::Word(chars[i..end].iter().collect()));
             i = end;
         } else {
@@ -205,9 +221,15 @@ mod tests {
     fn numbers_compare_with_a_tolerance_and_zero_keeps_its_sign() {
         assert!(compare_output("[0.5, 1.0]", "[0.5000000000001,1]").is_ok());
         assert!(compare_output("[0.5]", "[0.5001]").is_err());
-        assert!(compare_output("[0, 1]", "[-0.0, 1]").is_err(), "-0.0 is not 0");
+        assert!(
+            compare_output("[0, 1]", "[-0.0, 1]").is_err(),
+            "-0.0 is not 0"
+        );
         assert!(compare_output("[-0, 1]", "[-0.0, 1.0]").is_ok());
-        assert!(compare_output("[0]", "[6.1e-17]").is_ok(), "not an exact zero");
+        assert!(
+            compare_output("[0]", "[6.1e-17]").is_ok(),
+            "not an exact zero"
+        );
         assert!(compare_output("1796224074800288124", "1796224074800288125").is_ok());
     }
 
