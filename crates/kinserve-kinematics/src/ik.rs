@@ -5,13 +5,25 @@
 //! Damped least squares with Levenberg–Marquardt damping on the geometric
 //! Jacobian ([`Chain::jacobian_into`]): each step solves
 //! `(J Jᵀ + λ I) y = e`, `Δq = Jᵀ y` with nalgebra's Cholesky factorisation
-//! (6×6, or 3×3 in position-only mode, whatever the number of joints), is
-//! projected onto the joint limits, and is kept only if it lowers the error
-//! (λ shrinks tenfold after a kept step and grows tenfold after a refused one).
-//! An attempt that stalls — λ too large to move, no real progress for a while,
-//! or out of iterations — is followed by a restart from a pseudo-random
-//! in-limit configuration drawn from a fixed seed, so every answer is
-//! deterministic (unless the time cap cuts a solve short). Every answer, converged or not, is within the joint limits.
+//! (6×6, or 3×3 in position-only mode, whatever the number of joints), and is
+//! kept only if it lowers the error (λ shrinks tenfold after a kept step and
+//! grows tenfold after a refused one).
+//!
+//! An attempt has two phases. First the limits are ignored: unconstrained
+//! steps do not stall against a limit, and a solution they reach that lies
+//! outside the limits may still fit them after whole turns of revolute
+//! joints. If that does not give an in-limit solution, the second phase
+//! continues from the clamped configuration with every step projected onto
+//! the limits — on every other attempt with an active set (joints at a limit
+//! that the step would push further are taken out of the step), which
+//! reaches other solutions than plain clamping near the limits. A phase is
+//! abandoned as soon as it stalls: λ too large to move, several kept steps in
+//! a row that each remove less than a tenth of the error, or less than ¾ of
+//! the error removed over the last six iterations while still far from the
+//! target (the progress test that keeps failing attempts short). Then the
+//! solver restarts from a pseudo-random in-limit configuration drawn from a
+//! fixed seed, so every answer is deterministic (unless the time cap cuts a
+//! solve short). Every answer, converged or not, is within the joint limits.
 //!
 //! Units: joint values in rad (revolute) and the chain's length unit
 //! (prismatic); targets in the world frame in the chain's length unit;
@@ -49,6 +61,25 @@ const LAMBDA_MAX: f64 = 1e8;
 /// error before an attempt counts as stalled.
 const SLOW_STEPS: u32 = 8;
 const SLOW_RATIO: f64 = 0.1;
+/// The progress test: a phase is abandoned when its cost (squared error) is
+/// above [`PROGRESS_RATIO`] times the cost [`PROGRESS_WINDOW`] iterations
+/// earlier, unless the error is already within [`NEAR_FACTOR`] × the
+/// tolerance (close to a solution, convergence may be linear: let it run).
+const PROGRESS_WINDOW: usize = 6;
+const PROGRESS_RATIO: f64 = 0.25;
+const NEAR_FACTOR: f64 = 1e3;
+
+/// How a phase of an attempt treats the joint limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Limits {
+    /// Ignored (the configuration is brought into the limits afterwards).
+    Ignored,
+    /// Each trial configuration clamped into the limits.
+    Clamped,
+    /// Clamped, and joints at a limit that the step pushes further are
+    /// taken out of the step (an active set).
+    ActiveSet,
+}
 
 /// How to solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -126,6 +157,8 @@ struct Work {
     q: Vec<f64>,
     trial_q: Vec<f64>,
     step: Vec<f64>,
+    locked: Vec<bool>,
+    start: Vec<f64>,
     cur: Eval,
     trial: Eval,
 }
@@ -141,6 +174,8 @@ impl Work {
             q: vec![0.0; n],
             trial_q: vec![0.0; n],
             step: vec![0.0; n],
+            locked: vec![false; n],
+            start: vec![0.0; n],
             cur: eval(),
             trial: eval(),
         }
@@ -281,7 +316,8 @@ impl<'a> IkSolver<'a> {
         let mut attempts = 0;
         loop {
             attempts += 1;
-            let (done, cost) = self.attempt(target, &mut w, opts, cancel, &mut iterations);
+            let active_set = attempts % 2 == 0;
+            let (done, cost) = self.attempt(target, &mut w, opts, cancel, &mut iterations, active_set);
             // A converged attempt wins over any lower-cost unconverged one.
             let cost = if done { f64::NEG_INFINITY } else { cost };
             if best.as_ref().is_none_or(|(_, c)| cost < *c) {
@@ -311,8 +347,11 @@ impl<'a> IkSolver<'a> {
         }
     }
 
-    /// One damped-least-squares run from `w.q` (updated in place to the best
-    /// configuration it reached). Returns whether it converged and its cost.
+    /// One attempt from `w.q` (within the limits; updated in place to the best
+    /// in-limit configuration it reached): the unconstrained phase, then, unless
+    /// it gave an in-limit solution, the limited phase from the clamped result,
+    /// both within `opts.max_iterations` iterations together. Never answers
+    /// worse than its start. Returns whether it converged and its cost.
     fn attempt(
         &self,
         target: &Transform,
@@ -320,24 +359,75 @@ impl<'a> IkSolver<'a> {
         opts: &IkOptions,
         cancel: &AtomicBool,
         iterations: &mut u32,
+        active_set: bool,
     ) -> (bool, f64) {
+        w.start.copy_from_slice(&w.q);
         self.eval(target, &w.q, opts.position_only, &mut w.cur);
-        let mut lambda = LAMBDA_START;
-        let mut slow = 0;
-        for _ in 0..opts.max_iterations {
+        let start_cost = w.cur.cost;
+        let budget = opts.max_iterations;
+        let (done, used) = self.run(target, w, opts, cancel, iterations, budget, Limits::Ignored);
+        if done && self.wrap_into_limits(&mut w.q) {
+            self.eval(target, &w.q, opts.position_only, &mut w.cur);
             if self.converged(&w.cur, opts) {
                 return (true, w.cur.cost);
             }
-            if stopped(opts, cancel) {
-                break;
+        }
+        self.clamp(&mut w.q);
+        self.eval(target, &w.q, opts.position_only, &mut w.cur);
+        let limits = if active_set {
+            Limits::ActiveSet
+        } else {
+            Limits::Clamped
+        };
+        let (done, _) = self.run(target, w, opts, cancel, iterations, budget - used, limits);
+        if !done && w.cur.cost > start_cost {
+            w.q.copy_from_slice(&w.start);
+            self.eval(target, &w.q, opts.position_only, &mut w.cur);
+        }
+        (done, w.cur.cost)
+    }
+
+    /// One damped-least-squares phase from `w.q` (evaluated in `w.cur`), at
+    /// most `budget` iterations. Returns whether it converged and the
+    /// iterations it used.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &self,
+        target: &Transform,
+        w: &mut Work,
+        opts: &IkOptions,
+        cancel: &AtomicBool,
+        iterations: &mut u32,
+        budget: u32,
+        limits: Limits,
+    ) -> (bool, u32) {
+        let mut lambda = LAMBDA_START;
+        let mut slow = 0;
+        let mut history = [f64::INFINITY; PROGRESS_WINDOW];
+        let near = (NEAR_FACTOR * opts.tolerance).powi(2);
+        for it in 0..budget {
+            if self.converged(&w.cur, opts) {
+                return (true, it);
             }
+            let slot = it as usize % PROGRESS_WINDOW;
+            let stalled = w.cur.cost > near && w.cur.cost > PROGRESS_RATIO * history[slot];
+            if stopped(opts, cancel) || stalled {
+                return (false, it);
+            }
+            history[slot] = w.cur.cost;
             *iterations += 1;
-            let moved = self.step(&w.cur, lambda, opts.position_only, &mut w.step);
+            let moved = if limits == Limits::ActiveSet {
+                self.limited_step(&w.q, &w.cur, lambda, opts.position_only, &mut w.step, &mut w.locked)
+            } else {
+                self.step(&w.cur, lambda, opts.position_only, &mut w.step, &[])
+            };
             if moved {
                 for ((t, x), d) in w.trial_q.iter_mut().zip(&w.q).zip(&w.step) {
                     *t = x + d;
                 }
-                self.clamp(&mut w.trial_q);
+                if limits != Limits::Ignored {
+                    self.clamp(&mut w.trial_q);
+                }
                 self.eval(target, &w.trial_q, opts.position_only, &mut w.trial);
             }
             if moved && w.trial.cost < w.cur.cost {
@@ -347,16 +437,71 @@ impl<'a> IkSolver<'a> {
                 std::mem::swap(&mut w.cur, &mut w.trial);
                 lambda = (lambda / 10.0).max(LAMBDA_MIN);
                 if slow >= SLOW_STEPS {
-                    break;
+                    return (self.converged(&w.cur, opts), it + 1);
                 }
             } else {
                 lambda *= 10.0;
                 if lambda > LAMBDA_MAX {
-                    break;
+                    return (false, it + 1);
                 }
             }
         }
-        (self.converged(&w.cur, opts), w.cur.cost)
+        (self.converged(&w.cur, opts), budget)
+    }
+
+    /// [`IkSolver::step`] with the joints that stand at a limit and would be
+    /// pushed past it taken out of the step (an active set, re-solved until
+    /// no such joint remains, at most three passes).
+    fn limited_step(
+        &self,
+        q: &[f64],
+        e: &Eval,
+        lambda: f64,
+        position_only: bool,
+        out: &mut [f64],
+        locked: &mut [bool],
+    ) -> bool {
+        locked.iter_mut().for_each(|l| *l = false);
+        for _ in 0..3 {
+            if !self.step(e, lambda, position_only, out, locked) {
+                return false;
+            }
+            let mut more = false;
+            for (i, b) in self.bounds.iter().enumerate() {
+                if let Bound::Limited(lo, hi) = *b {
+                    let push = (q[i] >= hi && out[i] > 0.0) || (q[i] <= lo && out[i] < 0.0);
+                    if push && !locked[i] {
+                        locked[i] = true;
+                        more = true;
+                    }
+                }
+            }
+            if !more {
+                break;
+            }
+        }
+        true
+    }
+
+    /// Moves revolute joints outside their limits by whole turns into them
+    /// where a turn fits (the pose does not change). Whether every joint is
+    /// then within its limits.
+    fn wrap_into_limits(&self, q: &mut [f64]) -> bool {
+        let mut inside = true;
+        for ((x, b), kind) in q.iter_mut().zip(&self.bounds).zip(self.chain.joint_kinds()) {
+            let Bound::Limited(lo, hi) = *b else {
+                continue;
+            };
+            if kind == JointKind::Revolute && !(lo..=hi).contains(x) {
+                let turns = ((0.5 * (lo + hi) - *x) / (2.0 * PI)).round();
+                let moved = *x + turns * 2.0 * PI;
+                if (lo..=hi).contains(&moved) {
+                    *x = moved;
+                }
+            }
+            inside &= (lo..=hi).contains(x);
+        }
+        inside
     }
 
     fn converged(&self, e: &Eval, opts: &IkOptions) -> bool {
@@ -365,14 +510,24 @@ impl<'a> IkSolver<'a> {
     }
 
     /// The damped step `Δq = Jᵀ (J Jᵀ + λ·s·I)⁻¹ e` into `out`, with `s` the
-    /// mean diagonal of `J Jᵀ` (so λ is unit-free). False if the system is
-    /// not positive definite (only for a zero Jacobian and tiny λ).
-    fn step(&self, e: &Eval, lambda: f64, position_only: bool, out: &mut [f64]) -> bool {
+    /// mean diagonal of `J Jᵀ` (so λ is unit-free), over the joints not
+    /// `locked` (the others get 0; missing entries count as not locked).
+    /// False if the system is not positive definite (only for a zero
+    /// Jacobian and tiny λ).
+    fn step(
+        &self,
+        e: &Eval,
+        lambda: f64,
+        position_only: bool,
+        out: &mut [f64],
+        locked: &[bool],
+    ) -> bool {
         let cols = &e.columns;
+        let free = |i: usize| !locked.get(i).copied().unwrap_or(false);
         let mut y = [0.0; 6];
         if position_only {
             let mut a = Matrix3::<f64>::zeros();
-            for c in cols {
+            for (_, c) in cols.iter().enumerate().filter(|(i, _)| free(*i)) {
                 let v = Vector3::new(c[0], c[1], c[2]);
                 a += v * v.transpose();
             }
@@ -385,7 +540,7 @@ impl<'a> IkSolver<'a> {
             y[..3].copy_from_slice(chol.solve(&b).as_slice());
         } else {
             let mut a = Matrix6::<f64>::zeros();
-            for c in cols {
+            for (_, c) in cols.iter().enumerate().filter(|(i, _)| free(*i)) {
                 let v = Vector6::from_row_slice(c);
                 a += v * v.transpose();
             }
@@ -397,8 +552,12 @@ impl<'a> IkSolver<'a> {
             };
             y.copy_from_slice(chol.solve(&b).as_slice());
         }
-        for (o, c) in out.iter_mut().zip(cols) {
-            *o = c.iter().zip(&y).map(|(j, y)| j * y).sum();
+        for (i, (o, c)) in out.iter_mut().zip(cols).enumerate() {
+            *o = if free(i) {
+                c.iter().zip(&y).map(|(j, y)| j * y).sum()
+            } else {
+                0.0
+            };
         }
         true
     }
