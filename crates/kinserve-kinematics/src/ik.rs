@@ -25,6 +25,14 @@
 //! fixed seed, so every answer is deterministic (unless the time cap cuts a
 //! solve short). Every answer, converged or not, is within the joint limits.
 //!
+//! Two optional objectives ([`IkOptions`]): per-axis tolerances (position
+//! along and rotation about the target frame's x, y, z axes, `f64::INFINITY`
+//! for a free axis; an error component within its tolerance counts as zero,
+//! as TRAC-IK's bounds), and a null-space [`Posture`] for redundant arms: once
+//! a solution is found, steps `Δq = z + J⁺(e − J z)` with
+//! `z = W (q_posture − q)` move it towards the posture while every kept step
+//! stays within the tolerance.
+//!
 //! Units: joint values in rad (revolute) and the chain's length unit
 //! (prismatic); targets in the world frame in the chain's length unit;
 //! position error in that unit, orientation error in rad (the angle of
@@ -68,6 +76,9 @@ const SLOW_RATIO: f64 = 0.1;
 const PROGRESS_WINDOW: usize = 6;
 const PROGRESS_RATIO: f64 = 0.25;
 const NEAR_FACTOR: f64 = 1e3;
+/// Undamped steps back onto the target after each null-space posture step
+/// (the null space is tangent to the self-motion, which is curved).
+const POSTURE_CORRECTIONS: usize = 4;
 
 /// How a phase of an attempt treats the joint limits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,8 +92,22 @@ enum Limits {
     ActiveSet,
 }
 
+/// A preferred configuration for a redundant arm (the null-space objective
+/// of [`IkOptions::posture`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Posture {
+    /// Preferred joint values, one per joint (rad / length unit; missing
+    /// entries: no preference).
+    pub joints: Vec<f64>,
+    /// Weight per joint, unit-free: the fraction of the way to the preferred
+    /// value asked for per refinement step, used within `[0, 1]` (0 or
+    /// missing: no preference; larger values count as 1, negative or
+    /// non-finite ones as 0).
+    pub weights: Vec<f64>,
+}
+
 /// How to solve.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct IkOptions {
     /// Match the position only (orientation free): for arms with fewer than
     /// 6 joints or when orientation does not matter.
@@ -98,6 +123,20 @@ pub struct IkOptions {
     pub deadline: Option<Instant>,
     /// Seed of the restart configurations.
     pub rng_seed: u64,
+    /// Null-space posture objective: after a solution is found, it is moved
+    /// towards [`Posture::joints`] along the self-motion of the arm (only a
+    /// redundant arm, or a free axis, leaves room) while the pose stays
+    /// within the tolerance. Without a seed the first attempt starts from
+    /// the posture (clamped into the limits), and whole turns are chosen
+    /// near it.
+    pub posture: Option<Posture>,
+    /// Per-axis tolerances `[x, y, z, rx, ry, rz]`: position along (length
+    /// unit) and rotation about (rad) the target frame's axes, replacing
+    /// `tolerance` when set. `f64::INFINITY` leaves an axis free; an error
+    /// component within its tolerance counts as zero. `position_only` frees
+    /// the rotations whatever is set here. The solution's `converged` is
+    /// this test; its errors are still the full norms.
+    pub axis_tolerances: Option<[f64; 6]>,
 }
 
 impl Default for IkOptions {
@@ -109,6 +148,8 @@ impl Default for IkOptions {
             restarts: DEFAULT_RESTARTS,
             deadline: None,
             rng_seed: DEFAULT_RNG_SEED,
+            posture: None,
+            axis_tolerances: None,
         }
     }
 }
@@ -118,7 +159,8 @@ impl Default for IkOptions {
 pub struct IkSolution {
     /// Joint values (rad / length unit), always within the joint limits.
     pub q: Vec<f64>,
-    /// Whether both errors are within the tolerance (position only: the position error).
+    /// Whether both errors are within the tolerance (position only: the
+    /// position error; with [`IkOptions::axis_tolerances`]: every component).
     pub converged: bool,
     /// `|p_target − p|`, length unit.
     pub position_error: f64,
@@ -168,6 +210,7 @@ impl Work {
         let eval = || Eval {
             columns: vec![[0.0; 6]; n],
             error: [0.0; 6],
+            raw: [0.0; 6],
             cost: f64::INFINITY,
         };
         Work {
@@ -186,8 +229,11 @@ impl Work {
 #[derive(Clone, Debug)]
 struct Eval {
     columns: Vec<[f64; 6]>,
-    /// `[p_target − p; ω]` with `exp(ω) = R_target Rᵀ`.
+    /// `[p_target − p; ω]` with `exp(ω) = R_target Rᵀ` (in the target frame
+    /// with per-axis tolerances), components within their tolerance zeroed.
     error: [f64; 6],
+    /// The same before zeroing (what convergence is tested on).
+    raw: [f64; 6],
     /// The squared norm minimised (position rows only in position-only mode).
     cost: f64,
 }
@@ -303,9 +349,15 @@ impl<'a> IkSolver<'a> {
         cancel: &AtomicBool,
     ) -> IkSolution {
         let n = self.dof();
-        let reference: Vec<f64> = match seed {
-            Some(s) => (0..n).map(|i| s.get(i).copied().unwrap_or(0.0)).collect(),
-            None => self.bounds.iter().map(|b| self.middle(*b)).collect(),
+        let reference: Vec<f64> = match (seed, &opts.posture) {
+            (Some(s), _) => (0..n).map(|i| s.get(i).copied().unwrap_or(0.0)).collect(),
+            (None, Some(p)) => (0..n)
+                .map(|i| {
+                    let x = p.joints.get(i).copied().filter(|x| x.is_finite());
+                    x.unwrap_or(self.middle(self.bounds[i]))
+                })
+                .collect(),
+            (None, None) => self.bounds.iter().map(|b| self.middle(*b)).collect(),
         };
         let mut rng = Rng(opts.rng_seed);
         let mut w = Work::new(n);
@@ -317,7 +369,8 @@ impl<'a> IkSolver<'a> {
         loop {
             attempts += 1;
             let active_set = attempts % 2 == 0;
-            let (done, cost) = self.attempt(target, &mut w, opts, cancel, &mut iterations, active_set);
+            let (done, cost) =
+                self.attempt(target, &mut w, opts, cancel, &mut iterations, active_set);
             // A converged attempt wins over any lower-cost unconverged one.
             let cost = if done { f64::NEG_INFINITY } else { cost };
             if best.as_ref().is_none_or(|(_, c)| cost < *c) {
@@ -329,13 +382,18 @@ impl<'a> IkSolver<'a> {
             }
             self.random_start(&mut w.q, &mut rng);
         }
-        let mut q = best.map(|(q, _)| q).unwrap_or(reference.clone());
+        let (mut q, cost) = best.unwrap_or((reference.clone(), f64::INFINITY));
         self.near_reference(&mut q, &reference);
+        if let (Some(p), true) = (&opts.posture, cost == f64::NEG_INFINITY) {
+            w.q.copy_from_slice(&q);
+            self.refine_posture(target, &mut w, opts, cancel, p, &mut iterations);
+            q.copy_from_slice(&w.q);
+        }
         let pose = self.chain.forward(&q, 1.0);
         let position_error = norm3(&sub3(target.translation, pose.translation));
         let orientation_error = norm3(&rotation_error(target, &pose));
-        let converged = position_error <= opts.tolerance
-            && (opts.position_only || orientation_error <= opts.tolerance);
+        self.eval(target, &q, opts, &mut w.cur);
+        let converged = self.converged(&w.cur, opts);
         IkSolution {
             q,
             converged,
@@ -362,18 +420,18 @@ impl<'a> IkSolver<'a> {
         active_set: bool,
     ) -> (bool, f64) {
         w.start.copy_from_slice(&w.q);
-        self.eval(target, &w.q, opts.position_only, &mut w.cur);
+        self.eval(target, &w.q, opts, &mut w.cur);
         let start_cost = w.cur.cost;
         let budget = opts.max_iterations;
         let (done, used) = self.run(target, w, opts, cancel, iterations, budget, Limits::Ignored);
         if done && self.wrap_into_limits(&mut w.q) {
-            self.eval(target, &w.q, opts.position_only, &mut w.cur);
+            self.eval(target, &w.q, opts, &mut w.cur);
             if self.converged(&w.cur, opts) {
                 return (true, w.cur.cost);
             }
         }
         self.clamp(&mut w.q);
-        self.eval(target, &w.q, opts.position_only, &mut w.cur);
+        self.eval(target, &w.q, opts, &mut w.cur);
         let limits = if active_set {
             Limits::ActiveSet
         } else {
@@ -382,7 +440,7 @@ impl<'a> IkSolver<'a> {
         let (done, _) = self.run(target, w, opts, cancel, iterations, budget - used, limits);
         if !done && w.cur.cost > start_cost {
             w.q.copy_from_slice(&w.start);
-            self.eval(target, &w.q, opts.position_only, &mut w.cur);
+            self.eval(target, &w.q, opts, &mut w.cur);
         }
         (done, w.cur.cost)
     }
@@ -404,7 +462,10 @@ impl<'a> IkSolver<'a> {
         let mut lambda = LAMBDA_START;
         let mut slow = 0;
         let mut history = [f64::INFINITY; PROGRESS_WINDOW];
-        let near = (NEAR_FACTOR * opts.tolerance).powi(2);
+        let tol = opts.axis_tolerances.map_or(opts.tolerance, |t| {
+            t.iter().copied().fold(f64::INFINITY, f64::min)
+        });
+        let near = (NEAR_FACTOR * tol.min(1.0)).powi(2);
         for it in 0..budget {
             if self.converged(&w.cur, opts) {
                 return (true, it);
@@ -417,7 +478,14 @@ impl<'a> IkSolver<'a> {
             history[slot] = w.cur.cost;
             *iterations += 1;
             let moved = if limits == Limits::ActiveSet {
-                self.limited_step(&w.q, &w.cur, lambda, opts.position_only, &mut w.step, &mut w.locked)
+                self.limited_step(
+                    &w.q,
+                    &w.cur,
+                    lambda,
+                    opts.position_only,
+                    &mut w.step,
+                    &mut w.locked,
+                )
             } else {
                 self.step(&w.cur, lambda, opts.position_only, &mut w.step, &[])
             };
@@ -428,7 +496,7 @@ impl<'a> IkSolver<'a> {
                 if limits != Limits::Ignored {
                     self.clamp(&mut w.trial_q);
                 }
-                self.eval(target, &w.trial_q, opts.position_only, &mut w.trial);
+                self.eval(target, &w.trial_q, opts, &mut w.trial);
             }
             if moved && w.trial.cost < w.cur.cost {
                 let slow_step = w.trial.cost > SLOW_RATIO.mul_add(-w.cur.cost, w.cur.cost);
@@ -505,8 +573,102 @@ impl<'a> IkSolver<'a> {
     }
 
     fn converged(&self, e: &Eval, opts: &IkOptions) -> bool {
-        norm3(&e.error[..3]) <= opts.tolerance
-            && (opts.position_only || norm3(&e.error[3..]) <= opts.tolerance)
+        match opts.axis_tolerances {
+            Some(t) => {
+                let rows = if opts.position_only { 3 } else { 6 };
+                e.raw[..rows].iter().zip(&t).all(|(x, t)| x.abs() <= *t)
+            }
+            None => {
+                norm3(&e.raw[..3]) <= opts.tolerance
+                    && (opts.position_only || norm3(&e.raw[3..]) <= opts.tolerance)
+            }
+        }
+    }
+
+    /// The posture cost `Σ wᵢ (qᵢ − pᵢ)²` (weights within `[0, 1]`).
+    fn posture_cost(q: &[f64], p: &Posture) -> f64 {
+        q.iter()
+            .zip(&p.joints)
+            .zip(&p.weights)
+            .map(|((x, p), w)| posture_weight(*w) * (x - p).powi(2))
+            .filter(|c| c.is_finite())
+            .sum()
+    }
+
+    /// From a converged `w.q`, null-space steps towards the posture (each
+    /// followed by up to [`POSTURE_CORRECTIONS`] plain steps back onto the
+    /// target), each kept only if the pose is within the tolerance and the posture cost
+    /// falls (the step is halved after a refused one, doubled back after a
+    /// kept one), until the steps get negligible or `max_iterations` ran out.
+    fn refine_posture(
+        &self,
+        target: &Transform,
+        w: &mut Work,
+        opts: &IkOptions,
+        cancel: &AtomicBool,
+        p: &Posture,
+        iterations: &mut u32,
+    ) {
+        self.eval(target, &w.q, opts, &mut w.cur);
+        let mut cost = Self::posture_cost(&w.q, p);
+        let mut z = vec![0.0; self.dof()];
+        let mut scale = 1.0;
+        for _ in 0..opts.max_iterations {
+            if stopped(opts, cancel) || scale < 1e-3 {
+                break;
+            }
+            for (i, zi) in z.iter_mut().enumerate() {
+                let (pi, wi) = (p.joints.get(i), p.weights.get(i));
+                let pull = match (pi, wi) {
+                    (Some(pi), Some(wi)) => posture_weight(*wi) * (pi - w.q[i]),
+                    _ => 0.0,
+                };
+                *zi = if pull.is_finite() {
+                    (scale * pull).clamp(-0.5, 0.5)
+                } else {
+                    0.0
+                };
+            }
+            if z.iter().all(|x| x.abs() < 1e-12) {
+                break;
+            }
+            *iterations += 1;
+            if !self.step_z(&w.cur, 1e-9, opts.position_only, &mut w.step, &[], Some(&z)) {
+                break;
+            }
+            for ((t, x), d) in w.trial_q.iter_mut().zip(&w.q).zip(&w.step) {
+                *t = x + d;
+            }
+            self.clamp(&mut w.trial_q);
+            self.eval(target, &w.trial_q, opts, &mut w.trial);
+            // Corrector: a few undamped steps back onto the target.
+            for _ in 0..POSTURE_CORRECTIONS {
+                if self.converged(&w.trial, opts)
+                    || !self.step(&w.trial, 1e-9, opts.position_only, &mut w.step, &[])
+                {
+                    break;
+                }
+                *iterations += 1;
+                for (t, d) in w.trial_q.iter_mut().zip(&w.step) {
+                    *t += d;
+                }
+                self.clamp(&mut w.trial_q);
+                self.eval(target, &w.trial_q, opts, &mut w.trial);
+            }
+            let trial_cost = Self::posture_cost(&w.trial_q, p);
+            if self.converged(&w.trial, opts) && trial_cost < cost {
+                let gain = cost - trial_cost;
+                std::mem::swap(&mut w.q, &mut w.trial_q);
+                std::mem::swap(&mut w.cur, &mut w.trial);
+                cost = trial_cost;
+                scale = (scale * 2.0).min(1.0);
+                if gain <= 1e-12 * (1.0 + cost) {
+                    break;
+                }
+            } else {
+                scale *= 0.5;
+            }
+        }
     }
 
     /// The damped step `Δq = Jᵀ (J Jᵀ + λ·s·I)⁻¹ e` into `out`, with `s` the
@@ -522,8 +684,30 @@ impl<'a> IkSolver<'a> {
         out: &mut [f64],
         locked: &[bool],
     ) -> bool {
+        self.step_z(e, lambda, position_only, out, locked, None)
+    }
+
+    /// [`IkSolver::step`] plus `z` projected onto the null space of `J`:
+    /// `Δq = z + Jᵀ (J Jᵀ + λ·s·I)⁻¹ (e − J z)` (`None`: `z = 0`).
+    fn step_z(
+        &self,
+        e: &Eval,
+        lambda: f64,
+        position_only: bool,
+        out: &mut [f64],
+        locked: &[bool],
+        z: Option<&[f64]>,
+    ) -> bool {
         let cols = &e.columns;
         let free = |i: usize| !locked.get(i).copied().unwrap_or(false);
+        let mut rhs = e.error;
+        if let Some(z) = z {
+            for (c, zi) in cols.iter().zip(z) {
+                for (r, j) in rhs.iter_mut().zip(c) {
+                    *r -= j * zi;
+                }
+            }
+        }
         let mut y = [0.0; 6];
         if position_only {
             let mut a = Matrix3::<f64>::zeros();
@@ -533,7 +717,7 @@ impl<'a> IkSolver<'a> {
             }
             let s = (a.trace() / 3.0).max(f64::MIN_POSITIVE);
             a += Matrix3::identity() * (lambda * s);
-            let b = Vector3::new(e.error[0], e.error[1], e.error[2]);
+            let b = Vector3::new(rhs[0], rhs[1], rhs[2]);
             let Some(chol) = a.cholesky() else {
                 return false;
             };
@@ -546,15 +730,16 @@ impl<'a> IkSolver<'a> {
             }
             let s = (a.trace() / 6.0).max(f64::MIN_POSITIVE);
             a += Matrix6::identity() * (lambda * s);
-            let b = Vector6::from_row_slice(&e.error);
+            let b = Vector6::from_row_slice(&rhs);
             let Some(chol) = a.cholesky() else {
                 return false;
             };
             y.copy_from_slice(chol.solve(&b).as_slice());
         }
         for (i, (o, c)) in out.iter_mut().zip(cols).enumerate() {
+            let zi = z.and_then(|z| z.get(i)).copied().unwrap_or(0.0);
             *o = if free(i) {
-                c.iter().zip(&y).map(|(j, y)| j * y).sum()
+                zi + c.iter().zip(&y).map(|(j, y)| j * y).sum::<f64>()
             } else {
                 0.0
             };
@@ -562,15 +747,43 @@ impl<'a> IkSolver<'a> {
         true
     }
 
-    /// Pose, Jacobian and error at `q` into `out`.
-    fn eval(&self, target: &Transform, q: &[f64], position_only: bool, out: &mut Eval) {
+    /// Pose, Jacobian and error at `q` into `out`. With per-axis tolerances
+    /// the error and the Jacobian's rows are expressed in the target frame,
+    /// components within their tolerance count as zero and the rows of free
+    /// axes as zero too (the step then leaves them alone).
+    fn eval(&self, target: &Transform, q: &[f64], opts: &IkOptions, out: &mut Eval) {
         let pose = self
             .chain
             .jacobian_into(q, 1.0, JacobianFrame::Base, &mut out.columns);
         let p = sub3(target.translation, pose.translation);
         let w = rotation_error(target, &pose);
-        out.error = [p[0], p[1], p[2], w[0], w[1], w[2]];
-        let rows = if position_only { 3 } else { 6 };
+        out.raw = [p[0], p[1], p[2], w[0], w[1], w[2]];
+        out.error = out.raw;
+        if let Some(tol) = opts.axis_tolerances {
+            let r = &target.rotation;
+            // Rᵀ v for the target rotation R, on each 3-vector half.
+            let to_target = |v: &mut [f64]| {
+                let x = [v[0], v[1], v[2]];
+                for (k, o) in v.iter_mut().enumerate().take(3) {
+                    *o = r[0][k] * x[0] + r[1][k] * x[1] + r[2][k] * x[2];
+                }
+            };
+            to_target(&mut out.raw[..3]);
+            to_target(&mut out.raw[3..]);
+            for c in out.columns.iter_mut() {
+                to_target(&mut c[..3]);
+                to_target(&mut c[3..]);
+                for (x, t) in c.iter_mut().zip(&tol) {
+                    if t.is_infinite() {
+                        *x = 0.0;
+                    }
+                }
+            }
+            for ((e, x), t) in out.error.iter_mut().zip(&out.raw).zip(&tol) {
+                *e = if x.abs() <= *t { 0.0 } else { *x };
+            }
+        }
+        let rows = if opts.position_only { 3 } else { 6 };
         out.cost = out.error[..rows].iter().map(|x| x * x).sum();
     }
 
@@ -621,6 +834,15 @@ impl<'a> IkSolver<'a> {
                 *x = moved;
             }
         }
+    }
+}
+
+/// A posture weight as used: within `[0, 1]`, 0 for a negative or non-finite one.
+fn posture_weight(w: f64) -> f64 {
+    if w.is_finite() {
+        w.clamp(0.0, 1.0)
+    } else {
+        0.0
     }
 }
 

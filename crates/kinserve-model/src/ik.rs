@@ -713,7 +713,7 @@ impl IkRequest<'_> {
     pub fn solve_cancellable(&self, deadline: Option<Instant>, cancel: &AtomicBool) -> IkAnswer {
         let opts = IkOptions {
             deadline,
-            ..self.options
+            ..self.options.clone()
         };
         let solver = self.robot.solver();
         let (answer, _) = self.robot.solve_target(
@@ -766,7 +766,7 @@ impl IkBatch<'_> {
                 let now = Instant::now();
                 let opts = IkOptions {
                     deadline: Some((now + per_target).min(deadline)),
-                    ..self.options
+                    ..self.options.clone()
                 };
                 let (answer, q) = self.robot.solve_target(
                     &solver,

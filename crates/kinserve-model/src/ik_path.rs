@@ -428,7 +428,7 @@ impl IkPathRequest<'_> {
                     .checked_add(per_step)
                     .map(|t| deadline.map_or(t, |d| t.min(d)))
                     .or(deadline),
-                ..self.options
+                ..self.options.clone()
             };
             let target = IkTarget {
                 pose: step.pose,

@@ -178,7 +178,7 @@ fn an_unreachable_target_is_not_converged_and_reports_its_best_attempt() {
             &IkOptions {
                 max_iterations: 0,
                 restarts: 0,
-                ..opts
+                ..opts.clone()
             },
         );
         assert_eq!(start.q, mid(robot));

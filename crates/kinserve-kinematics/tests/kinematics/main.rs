@@ -2,7 +2,7 @@
 //! plain product of link matrices and the vectorised sine/cosine against
 //! `std` (`kinematics`), property tests over random tables (`properties`),
 //! the Jacobian against differences of FK (`jacobian`), numerical IK round
-//! trips (`ik`), and FK of the robot files in `robots/` against the course
+//! trips (`ik`) and their posture and per-axis objectives (`ik_objectives`), and FK of the robot files in `robots/` against the course
 //! notes' closed forms (`closed_forms`) and against published poses
 //! (`published_poses`).
 //!
@@ -12,6 +12,7 @@
 mod analytic_ik;
 mod closed_forms;
 mod ik;
+mod ik_objectives;
 mod jacobian;
 mod kinematics;
 mod properties;
