@@ -118,12 +118,20 @@ fn check_handed_off_solutions(path: &Path) -> usize {
             .map(|x| x.as_f64().unwrap())
             .collect()
     };
-    let target: Vec<Vec<f64>> = doc["target"].as_array().unwrap().iter().map(floats).collect();
+    let target: Vec<Vec<f64>> = doc["target"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(floats)
+        .collect();
     let solutions = doc["solutions"].as_array().unwrap();
     for s in solutions {
         let q = floats(s);
         let opts = kinserve::model::FkOptions::default();
-        assert!(robot.check_joints(&q, &opts).is_ok(), "within the limits: {q:?}");
+        assert!(
+            robot.check_joints(&q, &opts).is_ok(),
+            "within the limits: {q:?}"
+        );
         let m = robot.fk_unchecked(&q).matrix();
         for (i, row) in target.iter().enumerate() {
             for (j, want) in row.iter().enumerate() {

@@ -107,11 +107,7 @@ pub fn to_status(e: &Error) -> Status {
         fields.push((f.clone(), detail.clone()));
     }
     let mut details = ErrorDetails::new();
-    details.set_error_info(
-        reason_of(e),
-        ERROR_DOMAIN,
-        std::collections::HashMap::new(),
-    );
+    details.set_error_info(reason_of(e), ERROR_DOMAIN, std::collections::HashMap::new());
     for (field, message) in fields {
         details.add_bad_request_violation(field, message);
     }

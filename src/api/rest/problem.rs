@@ -52,13 +52,23 @@ fn classify(e: &Error) -> (StatusCode, &'static str) {
         Error::Forbidden { .. } => (StatusCode::FORBIDDEN, "Forbidden"),
         Error::Full { .. } => (StatusCode::INSUFFICIENT_STORAGE, "Registry full"),
         Error::TooLarge { .. } => (StatusCode::PAYLOAD_TOO_LARGE, "Request too large"),
-        Error::UnsupportedMediaType { .. } => (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
+        Error::UnsupportedMediaType { .. } => {
+            (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type")
+        }
         Error::Overloaded => (StatusCode::SERVICE_UNAVAILABLE, "Server overloaded"),
         Error::Unavailable { .. } => (StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
         Error::Storage { .. } => (StatusCode::INSUFFICIENT_STORAGE, "Storage failure"),
-        Error::IkNotConverged { .. } => (StatusCode::UNPROCESSABLE_ENTITY, "Inverse kinematics did not converge"),
-        Error::PreconditionFailed { .. } => (StatusCode::PRECONDITION_FAILED, "Precondition failed"),
-        Error::StoreUnavailable { .. } => (StatusCode::SERVICE_UNAVAILABLE, "Registry store unavailable"),
+        Error::IkNotConverged { .. } => (
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "Inverse kinematics did not converge",
+        ),
+        Error::PreconditionFailed { .. } => {
+            (StatusCode::PRECONDITION_FAILED, "Precondition failed")
+        }
+        Error::StoreUnavailable { .. } => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "Registry store unavailable",
+        ),
         Error::RequestTimeout { .. } => (StatusCode::REQUEST_TIMEOUT, "Request timeout"),
         Error::NotImplemented { .. } => (StatusCode::NOT_IMPLEMENTED, "Not implemented"),
         Error::Internal { .. } => (StatusCode::INTERNAL_SERVER_ERROR, "Internal error"),

@@ -248,7 +248,11 @@ fn check(case: &Case, protocol: &str, got: &Outcome, want: &Option<Success>) {
         (Expect::Error(class, fields), Err(f)) => {
             assert_eq!(f.class, *class, "{what}: error class ({})", f.raw);
             assert_eq!(f.fields, *fields, "{what}: field paths ({})", f.raw);
-            assert!(!f.kind.is_empty(), "{what}: names its problem kind ({})", f.raw);
+            assert!(
+                !f.kind.is_empty(),
+                "{what}: names its problem kind ({})",
+                f.raw
+            );
         }
         (e, g) => panic!("{what}: expected {e:?}, got {g:?}"),
     }
@@ -294,8 +298,15 @@ async fn every_case_gives_the_same_answer_over_rest_grpc_stream_and_websocket() 
                     assert_eq!(o.kind, r.kind, "{}: {name} vs REST ({})", c.label, o.raw);
                 }
             }
-            let (u, s) = (unary[i].as_ref().unwrap_err(), stream[i].as_ref().unwrap_err());
-            assert_eq!(s.kind, u.kind, "{}: gRPC stream vs unary ({})", c.label, s.raw);
+            let (u, s) = (
+                unary[i].as_ref().unwrap_err(),
+                stream[i].as_ref().unwrap_err(),
+            );
+            assert_eq!(
+                s.kind, u.kind,
+                "{}: gRPC stream vs unary ({})",
+                c.label, s.raw
+            );
         }
         // ...and the same poses.
         if let Ok(r) = &rest[i] {

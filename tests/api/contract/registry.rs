@@ -163,7 +163,11 @@ fn assert_error(o: &Outcome, class: Class, fields: &[&str], what: &str) -> Strin
         Err(f) => {
             assert_eq!(f.class, class, "{what}: class ({})", f.raw);
             assert_eq!(f.fields, fields, "{what}: fields ({})", f.raw);
-            assert!(!f.kind.is_empty(), "{what}: names its problem kind ({})", f.raw);
+            assert!(
+                !f.kind.is_empty(),
+                "{what}: names its problem kind ({})",
+                f.raw
+            );
             f.kind.clone()
         }
         Ok(_) => panic!("{what}: expected {class:?}, it succeeded"),
@@ -175,7 +179,10 @@ fn assert_error(o: &Outcome, class: Class, fields: &[&str], what: &str) -> Strin
 fn assert_errors(rest: &Outcome, grpc: &Outcome, class: Class, fields: &[&str], what: &str) {
     let r = assert_error(rest, class, fields, &format!("{what} over REST"));
     let g = assert_error(grpc, class, fields, &format!("{what} over gRPC"));
-    assert_eq!(g, r, "{what}: the gRPC ErrorInfo reason names REST's problem type");
+    assert_eq!(
+        g, r,
+        "{what}: the gRPC ErrorInfo reason names REST's problem type"
+    );
 }
 
 #[tokio::test]
@@ -500,7 +507,13 @@ async fn auth_and_size_limits_have_the_same_class_over_rest_and_grpc() {
         })
         .await,
     );
-    assert_errors(&rest, &grpc, Class::TooLarge, &["configurations"], "batch count");
+    assert_errors(
+        &rest,
+        &grpc,
+        Class::TooLarge,
+        &["configurations"],
+        "batch count",
+    );
 
     // Over the byte limit of a batch body / message (the count limit is not reached).
     let joints = vec![0.123456789; 5000]; // 40 KB as doubles, ~60 KB as JSON
