@@ -198,8 +198,9 @@ def test_errors_have_the_same_type_status_and_fields_on_both_transports(server: 
     """Over gRPC the problem kind comes from the ``google.rpc.ErrorInfo``
     every error status carries; it must be REST's problem type."""
     got: dict[str, list[tuple[Any, ...]]] = {}
-    for transport in ("rest", "grpc"):
-        with kc.Client(server.address(transport), transport=transport, token=server.token) as c:  # type: ignore[arg-type]
+    transports: list[kc.types.Transport] = ["rest", "grpc"]
+    for transport in transports:
+        with kc.Client(server.address(transport), transport=transport, token=server.token) as c:
             c.register(planar_model(f"py-kinds-{transport}"))
             try:
                 for label, fn in _error_cases(c, transport):
