@@ -75,6 +75,25 @@ pub enum Command {
         /// Give up after this long.
         #[arg(long, default_value = "3s", value_parser = parse_duration)]
         timeout: Duration,
+        /// Probe over TLS (a server with --tls-cert); the server's
+        /// certificate is not checked: the probe asks about readiness, not identity.
+        #[arg(long, env = "KINSERVE_HEALTHCHECK_TLS", action = clap::ArgAction::SetTrue)]
+        tls: bool,
+        /// With --tls: present this client certificate (PEM), for a server
+        /// that requires one (--tls-client-ca). Needs --client-key.
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_CERT",
+            requires = "client_key"
+        )]
+        client_cert: Option<PathBuf>,
+        /// The private key of --client-cert (PEM).
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_KEY",
+            requires = "client_cert"
+        )]
+        client_key: Option<PathBuf>,
     },
 }
 
@@ -492,6 +511,9 @@ pub struct ServeConfig {
     /// long after it opened is closed (at most --stream-idle-timeout).
     #[arg(long, env = "KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub stream_first_message_timeout: Duration,
+    /// TLS on the listeners and to the database (docs/tls.md).
+    #[command(flatten)]
+    pub tls: crate::tls::TlsOptions,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -534,6 +556,7 @@ impl std::fmt::Debug for ServeConfig {
             client_share_percent,
             trust_forwarded_for,
             stream_first_message_timeout,
+            tls,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -573,6 +596,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("client_share_percent", client_share_percent)
             .field("trust_forwarded_for", trust_forwarded_for)
             .field("stream_first_message_timeout", stream_first_message_timeout)
+            .field("tls", tls)
             .finish()
     }
 }
