@@ -231,24 +231,26 @@ pub fn connector(mode: SslMode, ca_file: Option<&Path>) -> Result<MakeRustlsConn
     Ok(MakeRustlsConnect::new(config))
 }
 
-/// Whether `e` (or one of its causes) is a refused server certificate: a
-/// lasting error, worth saying so at once rather than retrying.
-pub fn is_certificate_error(e: &(dyn std::error::Error + 'static)) -> bool {
+/// The refused server certificate among `e` and its causes, if that is
+/// what failed (`invalid peer certificate: UnknownIssuer`, ...): a lasting
+/// error, worth saying so at once rather than retrying.
+pub fn certificate_error(e: &(dyn std::error::Error + 'static)) -> Option<String> {
     let mut cause = Some(e);
     while let Some(e) = cause {
-        if let Some(rustls::Error::InvalidCertificate(_)) = e.downcast_ref::<rustls::Error>() {
-            return true;
+        if let Some(tls @ rustls::Error::InvalidCertificate(_)) = e.downcast_ref::<rustls::Error>()
+        {
+            return Some(tls.to_string());
         }
-        if let Some(inner) = e
+        if let Some(found) = e
             .downcast_ref::<std::io::Error>()
             .and_then(|io| io.get_ref())
-            && is_certificate_error(inner)
+            .and_then(|inner| certificate_error(inner))
         {
-            return true;
+            return Some(found);
         }
         cause = e.source();
     }
-    false
+    None
 }
 
 #[cfg(test)]

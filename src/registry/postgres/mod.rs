@@ -204,9 +204,10 @@ impl PgStore {
             match schema::migrate(&driver).await {
                 Ok(()) => break,
                 // A refused certificate stays refused: say so now, not in 30 s.
-                Err(e) if crate::tls::postgres::is_certificate_error(&e) => {
+                Err(e) if crate::tls::postgres::certificate_error(&e).is_some() => {
+                    let why = crate::tls::postgres::certificate_error(&e).unwrap_or_default();
                     return Err(format!(
-                        "the database's TLS certificate is refused ({e}): check --database-ca-file \
+                        "the database's TLS certificate is refused ({why}): check --database-ca-file \
                          (or sslrootcert) and, with sslmode=verify-full, the host name in --database-url"
                     ));
                 }
