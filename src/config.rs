@@ -814,6 +814,7 @@ mod tests {
             ("--shutdown-grace", "1e30s", "at most 24h"),
             ("--shutdown-timeout", "1e30s", "at most 24h"),
             ("--database-resync-interval", "1e30s", "at most 24h"),
+            ("--tls-reload-interval", "1e30s", "at most 24h"),
             ("--ik-time-limit", "1e18s", "at most 60s"),
             ("--max-batch", "1000001", "at most 1000000"),
             ("--max-robots", "1000001", "at most 1000000"),
