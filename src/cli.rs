@@ -1,5 +1,5 @@
 //! The `kinserve` command line: `serve` (default), `validate`, `fk`,
-//! `jacobian`, `ik`, `closed-form`, `urdf`, `import-urdf`, `bench` (in [`crate::bench`]),
+//! `jacobian`, `ik`, `ik-path`, `closed-form`, `urdf`, `import-urdf`, `bench` (in [`crate::bench`]),
 //! `healthcheck`.
 
 use std::io::{Read, Write};
@@ -7,18 +7,20 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::process::ExitCode;
 use std::time::Duration;
 
-use crate::api::ik::{IkItem, IkOutput};
+use crate::api::ik::{IkItem, IkOutput, IkPathOutput};
 use crate::api::jacobian::{JacobianItem, JacobianOutput};
 use crate::api::pose::{FkOutput, Pose};
 use crate::api::rest::LinkTransformsOutput;
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, ConventionArg, FkArgs, FrameArg, IkArgs,
-    ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
+    IkPathArgs, ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
+    SolverArg,
 };
 use crate::error::Error;
 use crate::model::{
-    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkSpec, IkTargetSpec, ModelLimits,
-    QuaternionSpec, ReferenceFrame, Robot, UrdfImport, import_urdf, load_robot_file, to_urdf,
+    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkPathSpec, IkSolutionsMode, IkSolverChoice,
+    IkSpec, IkTargetSpec, ModelLimits, QuaternionSpec, ReferenceFrame, Robot, UrdfImport,
+    import_urdf, load_robot_file, to_urdf,
 };
 use crate::registry::builtin;
 
@@ -56,6 +58,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Jacobian(args)) => jacobian(&args),
         Some(Command::LinkTransforms(args)) => link_transforms(&args),
         Some(Command::Ik(args)) => ik(&args),
+        Some(Command::IkPath(args)) => ik_path(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
         Some(Command::ImportUrdf(args)) => import_urdf_file(&args),
@@ -296,6 +299,13 @@ fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
         restarts: args.restarts,
+        solver: solver(args.solver),
+        solutions: if args.all {
+            IkSolutionsMode::All
+        } else {
+            IkSolutionsMode::Best
+        },
+        max_solutions: args.max_solutions,
     })
 }
 
@@ -329,6 +339,95 @@ fn ik(args: &IkArgs) -> ExitCode {
             Error::ik_not_converged(answer, robot.length_unit().as_str())
         );
         print_json(&out, ExitCode::FAILURE)
+    }
+}
+
+/// `kinserve ik-path`: the path the flags describe, solved once.
+fn ik_path(args: &IkPathArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let mut waypoints = Vec::new();
+    for (i, w) in args.waypoints.iter().enumerate() {
+        match waypoint(w, args.position_only) {
+            Ok(t) => waypoints.push(t),
+            Err(e) => {
+                eprintln!("--waypoint #{}: {e}", i + 1);
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    let spec = IkPathSpec {
+        start: args.start.clone(),
+        waypoints,
+        angle_unit: angle_unit(args.deg),
+        position_only: args.position_only,
+        max_step_length: args.max_step_length,
+        max_step_angle: args.max_step_angle,
+        max_joint_step: args.max_joint_step,
+        tolerance: args.tolerance,
+        solver: solver(args.solver),
+        ..IkPathSpec::default()
+    };
+    let request = match robot.check_ik_path(&spec, 10_000) {
+        Ok(r) => r,
+        Err(e) => {
+            print_error("ik-path", &e.into());
+            return ExitCode::FAILURE;
+        }
+    };
+    let answer = request.solve(std::time::Instant::now().checked_add(args.time_limit));
+    let out = IkPathOutput::new(robot.name(), robot.length_unit(), spec.angle_unit, answer);
+    match &out.stop {
+        None => print_json(&out, ExitCode::SUCCESS),
+        Some(stop) => {
+            eprintln!(
+                "ik-path: stopped at step {} (waypoint {}): {}: {}",
+                stop.step,
+                stop.waypoint,
+                stop.reason.as_str(),
+                stop.detail
+            );
+            print_json(&out, ExitCode::FAILURE)
+        }
+    }
+}
+
+/// One `--waypoint`: 7 numbers (position, quaternion w,x,y,z) or 3 with
+/// `--position-only`.
+fn waypoint(text: &str, position_only: bool) -> Result<IkTargetSpec, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match (v.as_slice(), position_only) {
+        (&[x, y, z, w, qx, qy, qz], _) => Ok(IkTargetSpec {
+            position: Some([x, y, z]),
+            quaternion: Some(QuaternionSpec {
+                w,
+                x: qx,
+                y: qy,
+                z: qz,
+            }),
+            matrix: None,
+        }),
+        (&[x, y, z], true) => Ok(IkTargetSpec {
+            position: Some([x, y, z]),
+            ..IkTargetSpec::default()
+        }),
+        _ => Err(format!(
+            "give x,y,z,w,qx,qy,qz (or x,y,z with --position-only), got {} values",
+            v.len()
+        )),
+    }
+}
+
+fn solver(s: SolverArg) -> IkSolverChoice {
+    match s {
+        SolverArg::Auto => IkSolverChoice::Auto,
+        SolverArg::Analytic => IkSolverChoice::Analytic,
+        SolverArg::Numeric => IkSolverChoice::Numeric,
     }
 }
 

@@ -51,6 +51,10 @@ pub enum Command {
     /// API's `ik` response); exits 1 (printing the best attempt) if the
     /// target is not reached within the tolerance.
     Ik(IkArgs),
+    /// Solve a Cartesian path once and print it as JSON (the REST API's
+    /// `ik/path` response); exits 1 (printing the steps taken and why it
+    /// stopped) if the path stops before its end.
+    IkPath(IkPathArgs),
     /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
     /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
     ClosedForm(ClosedFormArgs),
@@ -178,6 +182,62 @@ pub enum FrameArg {
     Tool,
 }
 
+/// Arguments of `kinserve ik-path`: a start configuration and one or more
+/// `--waypoint`s.
+#[derive(Debug, Args)]
+pub struct IkPathArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Start configuration, comma separated, in the answer's angle unit.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub start: Vec<f64>,
+    /// A pose to pass through: x,y,z,w,qx,qy,qz (position and quaternion), or
+    /// x,y,z with --position-only. Repeat for more, in order.
+    #[arg(long = "waypoint", required = true, allow_hyphen_values = true)]
+    pub waypoints: Vec<String>,
+    /// Start, --max-joint-step and answer in degrees.
+    #[arg(long)]
+    pub deg: bool,
+    /// Match positions only.
+    #[arg(long)]
+    pub position_only: bool,
+    /// Longest Cartesian step, robot length unit (default 0.01 m or 10 mm).
+    #[arg(long)]
+    pub max_step_length: Option<f64>,
+    /// Largest orientation change per step, rad (default 0.05).
+    #[arg(long)]
+    pub max_step_angle: Option<f64>,
+    /// Largest move of a joint between steps (default 20°; prismatic: ten steps).
+    #[arg(long)]
+    pub max_joint_step: Option<f64>,
+    /// IK tolerance per step (default 1e-9).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Which solver runs per step.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+    /// Give up after this long (the steps so far are printed; at most 60 s).
+    #[arg(long, default_value = "10s", value_parser = parse_ik_time_limit)]
+    pub time_limit: Duration,
+}
+
+/// `kinserve ik --solver`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SolverArg {
+    /// The closed form where the arm has one and the target an orientation, else numeric.
+    Auto,
+    /// The closed form only.
+    Analytic,
+    /// Damped least squares with restarts.
+    Numeric,
+}
+
 /// Arguments of `kinserve ik`: a target as `--matrix` or `--position`
 /// (with `--quaternion` unless `--position-only`).
 #[derive(Debug, Args)]
@@ -213,6 +273,15 @@ pub struct IkArgs {
     /// Restarts after a stalled attempt (default 100).
     #[arg(long)]
     pub restarts: Option<u32>,
+    /// Which solver runs: auto (the closed form where the arm has one), analytic, numeric.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+    /// Every solution inside the limits (closed form), nearest the seed first.
+    #[arg(long)]
+    pub all: bool,
+    /// With --all, at most this many solutions (default 64; 1 to 1024).
+    #[arg(long)]
+    pub max_solutions: Option<u32>,
     /// Give up after this long, answering the best attempt (at most 60 s).
     #[arg(long, default_value = "1s", value_parser = parse_ik_time_limit)]
     pub time_limit: Duration,

@@ -15,7 +15,7 @@ use tonic::{Status, Streaming};
 use super::{GrpcService, oversize, pb, status, streams};
 use crate::compute::ClientId;
 use crate::error::Error;
-use crate::model::StreamOp;
+use crate::model::{AngleUnit, StreamOp};
 use crate::service::StreamAnswer;
 use crate::telemetry::Protocol;
 use kinserve_api::{packed_to_pb, pose_to_pb};
@@ -59,19 +59,33 @@ impl GrpcService {
         let entry = self.service.robot_at(&msg.robot, "robot")?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
+        // A path answer names its units like InverseKinematicsPath's.
+        let path_units = match &op {
+            StreamOp::IkPath(p) => (entry.robot.name().to_string(), p.angle_unit),
+            _ => (String::new(), AngleUnit::Rad),
+        };
         let answer = self
             .service
             .stream_step(entry, op, Protocol::Grpc, client)
             .await?;
-        Ok(stream_response(answer, unit))
+        Ok(stream_response(answer, unit, path_units))
     }
 }
 
 /// A stream answer as its message (Pose messages for `full`, PackedPoses for
-/// a compact `pose_format`).
-fn stream_response(answer: StreamAnswer, unit: i32) -> pb::StreamForwardKinematicsResponse {
+/// a compact `pose_format`; a path as InverseKinematicsPath answers it).
+fn stream_response(
+    answer: StreamAnswer,
+    unit: i32,
+    (robot, angle_unit): (String, AngleUnit),
+) -> pb::StreamForwardKinematicsResponse {
     use pb::stream_forward_kinematics_response::Result as Answer;
     match answer {
+        StreamAnswer::IkPath(a) => pb::StreamForwardKinematicsResponse {
+            length_unit: unit,
+            ik_path: Some(kinserve_api::ik_path_to_pb(&a, robot, unit, angle_unit)),
+            ..Default::default()
+        },
         StreamAnswer::Ik(a) => {
             let result = pb::InverseKinematicsResult::from(&a);
             pb::StreamForwardKinematicsResponse {
@@ -108,6 +122,7 @@ fn stream_response(answer: StreamAnswer, unit: i32) -> pb::StreamForwardKinemati
                 frames,
                 jacobian: jacobian.map(|j| Box::new(pb::JacobianResult::from(&j))),
                 ik: None,
+                ik_path: None,
                 packed_frames,
                 link_transforms: link_transforms
                     .unwrap_or_default()

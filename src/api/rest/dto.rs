@@ -6,7 +6,10 @@ use utoipa::ToSchema;
 use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositions};
 use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
 use crate::kinematics::Transform;
-use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
+use crate::model::{
+    AngleUnit, ConventionSpec, FkOptions, IkAnswer, IkBranch, IkPathSpec, IkSolutionItem,
+    IkSolverUsed, IkSpec, LengthUnit, PathStop, ReferenceFrame, Singularity,
+};
 use crate::model::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
     StreamOp,
@@ -30,11 +33,18 @@ pub struct RobotSummaryDto {
     /// `builtin` (read-only, from robots/) or `registered` (through the API).
     #[schema(example = "builtin")]
     pub source: String,
+    /// Closed-form IK class (`spherical_wrist_parallel_23`,
+    /// `spherical_wrist_intersecting_12`, `spherical_wrist_intersecting_23`,
+    /// `three_parallel_234`): `solver: "analytic"` and `solutions: "all"`
+    /// work; absent when only the numeric solver applies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(example = "spherical_wrist_parallel_23")]
+    pub ik_class: Option<String>,
 }
 
 /// `GET /v1/robots`.
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin"}]}))]
+#[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin", "ik_class": "spherical_wrist_parallel_23"}]}))]
 pub struct RobotList {
     /// One page of robots, sorted by name.
     pub robots: Vec<RobotSummaryDto>,
@@ -349,6 +359,9 @@ pub struct WsRequest {
     /// An IK request instead of FK (like the body of `POST /v1/robots/{name}/ik`).
     #[serde(default)]
     pub ik: Option<IkSpec>,
+    /// A Cartesian path instead of FK (like the body of `POST /v1/robots/{name}/ik/path`).
+    #[serde(default)]
+    pub ik_path: Option<IkPathSpec>,
     /// Also return each DH row's link matrix and its inverse (default false;
     /// as `POST …/link-transforms` answers them).
     #[serde(default)]
@@ -374,6 +387,15 @@ impl TryFrom<WsRequest> for StreamOp {
     /// `joints` and `ik`, or neither, is refused naming `joints`.
     fn try_from(r: WsRequest) -> Result<StreamOp, Self::Error> {
         use crate::model::ModelError;
+        if let Some(path) = r.ik_path {
+            if r.ik.is_some() || r.joints.is_some() {
+                return Err(ModelError::invalid_field(
+                    "joints",
+                    "give joints (FK), ik or ik_path, one of them",
+                ));
+            }
+            return Ok(StreamOp::IkPath(Box::new(path)));
+        }
         match (r.ik, r.joints) {
             (Some(_), Some(_)) => Err(ModelError::invalid_field(
                 "joints",
@@ -458,6 +480,9 @@ pub struct WsReply<'a> {
     /// For an IK request: the answer (as `POST …/ik` answers it, `pose` above).
     #[serde(flatten)]
     pub ik: Option<WsIk>,
+    /// For a Cartesian path: the answer (as `POST …/ik/path` answers it).
+    #[serde(flatten)]
+    pub ik_path: Option<WsIkPath>,
     /// With `"link_transforms": true`: each DH row's link matrix and its
     /// inverse (as `POST …/link-transforms` answers them).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -481,6 +506,7 @@ impl<'a> WsReply<'a> {
             frame_positions: None,
             jacobian: None,
             ik: None,
+            ik_path: None,
             link_transforms: None,
             error: None,
         }
@@ -572,6 +598,19 @@ pub struct LinkTransformsOutput {
     pub link_transforms: Vec<LinkTransformItem>,
 }
 
+/// The path part of a WebSocket reply (see [`crate::api::ik::IkPathOutput`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsIkPath {
+    /// Joint values per step: the start, then each step taken.
+    pub points: Vec<Vec<f64>>,
+    /// Steps taken ÷ steps planned.
+    pub fraction: f64,
+    /// Waypoints fully reached.
+    pub waypoints_reached: usize,
+    /// `null` when complete; else where and why it stopped.
+    pub stop: Option<PathStop>,
+}
+
 /// The IK part of a WebSocket reply (see [`crate::api::ik::IkItem`]).
 #[derive(Debug, Serialize, ToSchema)]
 pub struct WsIk {
@@ -585,4 +624,33 @@ pub struct WsIk {
     pub orientation_error: Option<f64>,
     /// Solver iterations.
     pub iterations: u32,
+    /// The solver that ran (`analytic` or `numeric`).
+    pub solver: IkSolverUsed,
+    /// The closed-form branch of `joints` (`null` from the numeric solver).
+    pub branch: Option<IkBranch>,
+    /// Singularities `joints` stands at.
+    pub singular: Vec<Singularity>,
+    /// With `solutions: "all"` only: every solution, nearest the seed first.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solutions: Option<Vec<IkSolutionItem>>,
+    /// With `solutions: "all"` only: whether more fit than `max_solutions`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truncated: Option<bool>,
+}
+
+impl From<&IkAnswer> for WsIk {
+    fn from(a: &IkAnswer) -> Self {
+        WsIk {
+            joints: a.joints.clone(),
+            converged: a.converged,
+            position_error: a.position_error,
+            orientation_error: a.orientation_error,
+            iterations: a.iterations,
+            solver: a.solver,
+            branch: a.branch,
+            singular: a.singular.clone(),
+            solutions: a.solutions.clone(),
+            truncated: a.solutions.is_some().then_some(a.truncated),
+        }
+    }
 }

@@ -8,8 +8,8 @@ use axum::extract::State;
 use super::AppState;
 use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
-use crate::api::ik::{IkBatchOutput, IkItem, IkOutput};
-use crate::model::{IkBatchSpec, IkSpec};
+use crate::api::ik::{IkBatchOutput, IkItem, IkOutput, IkPathOutput};
+use crate::model::{IkBatchSpec, IkPathSpec, IkSpec};
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -122,4 +122,44 @@ pub async fn ik_batch(
         angle_unit,
         results: answers.iter().map(IkItem::from).collect(),
     }))
+}
+
+/// A Cartesian path: from `start` through the waypoints along straight lines
+/// (positions linear, orientations slerped) in steps of at most
+/// `max_step_length` / `max_step_angle`, each solved by IK seeded with the
+/// previous step. Stops at the first step no solution within the limits
+/// reaches, that would move a joint more than `max_joint_step`, or that
+/// stands at a singularity: still a 200, `stop` says which step and why and
+/// `fraction` how much was achieved (MoveIt's `computeCartesianPath`).
+#[utoipa::path(post, path = "/v1/robots/{name}/ik/path", tag = "ik", request_body = IkPathSpec,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "The joints of every step taken, start first; `stop` when it ended early", body = IkPathOutput),
+        (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "More steps than the batch limit at this step size (`max_step_length`), more waypoints than the limit, or body over the size limit", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Invalid request, with field paths such as `start[2]` or `waypoints[1].quaternion`", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: max_step_length: must be a number above 0 and at most 1000000000, got 0",
+                "errors": [{"field": "max_step_length", "message": "must be a number above 0 and at most 1000000000, got 0"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+pub async fn ik_path(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    Client(client): Client,
+    JsonBody(req): JsonBody<IkPathSpec>,
+) -> ApiResult<Json<IkPathOutput>> {
+    let entry = state.service.robot(&name)?;
+    let angle_unit = req.angle_unit;
+    let answer = state
+        .service
+        .ik_path_on_pool(client, entry.clone(), req)
+        .await?;
+    Ok(Json(IkPathOutput::new(
+        entry.robot.name(),
+        entry.robot.length_unit(),
+        angle_unit,
+        answer,
+    )))
 }

@@ -60,7 +60,8 @@ fn declared(
     let batch = OpenApiRouter::default()
         .routes(routes!(handlers::fk_batch))
         .routes(routes!(jacobian::jacobian_batch))
-        .routes(routes!(ik::ik_batch));
+        .routes(routes!(ik::ik_batch))
+        .routes(routes!(ik::ik_path));
     let open = OpenApiRouter::default()
         .routes(routes!(handlers::healthz))
         .routes(routes!(handlers::readyz))
