@@ -192,9 +192,12 @@ fn angle_unit(deg: bool) -> AngleUnit {
 }
 
 /// Prints `value` as pretty JSON; `code` if that worked.
+/// Prints `value` as indented JSON with every list of scalars on one line
+/// (so a 4×4 matrix reads as four rows), then returns `code`.
 fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
     match serde_json::to_string_pretty(value) {
         Ok(s) => {
+            let s = scalar_lists_on_one_line(&s);
             outln!("{s}");
             code
         }
@@ -203,6 +206,53 @@ fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Rewrites serde_json's pretty output so that an array holding only
+/// scalars (numbers, strings, booleans, null) is one line, `[1.0, -0.0, 2.5]`;
+/// arrays of arrays or objects stay one element per line. The values and
+/// their text are unchanged (only whitespace moves).
+///
+/// ```text
+/// "position": [        ->   "position": [0.4521, -0.15005, 1.10363]
+///   0.4521,
+///   -0.15005,
+///   1.10363
+/// ]
+/// ```
+fn scalar_lists_on_one_line(pretty: &str) -> String {
+    let lines: Vec<&str> = pretty.lines().collect();
+    let mut out: Vec<String> = Vec::with_capacity(lines.len());
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i];
+        if line.ends_with('[') {
+            let items: Vec<&str> = lines[i + 1..]
+                .iter()
+                .take_while(|l| !l.trim_start().starts_with(']'))
+                .map(|l| l.trim())
+                .collect();
+            let close = lines.get(i + 1 + items.len()).map(|l| l.trim());
+            if let Some(close) = close
+                && !items.is_empty()
+                && items.iter().all(|item| is_scalar(item))
+            {
+                let joined = items.join(" ");
+                out.push(format!("{line}{joined}{close}"));
+                i += items.len() + 2;
+                continue;
+            }
+        }
+        out.push(line.to_string());
+        i += 1;
+    }
+    out.join("\n")
+}
+
+/// Whether one line of pretty JSON is a scalar array element (with its comma).
+fn is_scalar(item: &str) -> bool {
+    let value = item.strip_suffix(',').unwrap_or(item);
+    serde_json::from_str::<serde_json::Value>(value).is_ok_and(|v| !(v.is_array() || v.is_object()))
 }
 
 fn jacobian(args: &JacobianArgs) -> ExitCode {
@@ -639,4 +689,32 @@ fn ask_ready(mut s: impl Read + Write, addr: &str) -> std::io::Result<bool> {
     let n = s.read(&mut buf)?;
     let head = String::from_utf8_lossy(&buf[..n]);
     Ok(head.starts_with("HTTP/1.1 200") || head.starts_with("HTTP/1.0 200"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scalar_lists_on_one_line;
+
+    #[test]
+    fn matrices_print_one_row_per_line_and_values_stay_as_printed() {
+        let value = serde_json::json!({
+            "matrix": [[1.0, -0.0, 0.0, 0.4521], [0.0, 1.0, 0.0, -0.15005]],
+            "names": ["a", "b,]"],
+            "frames": [{"position": [0.0, 1.0, 2.0]}],
+            "empty": []
+        });
+        let pretty = serde_json::to_string_pretty(&value).unwrap();
+        let compact = scalar_lists_on_one_line(&pretty);
+        assert!(
+            compact.contains("\n    [1.0, -0.0, 0.0, 0.4521],\n"),
+            "{compact}"
+        );
+        assert!(compact.contains("\"names\": [\"a\", \"b,]\"]"), "{compact}");
+        assert!(
+            compact.contains("\"position\": [0.0, 1.0, 2.0]"),
+            "{compact}"
+        );
+        let back: serde_json::Value = serde_json::from_str(&compact).unwrap();
+        assert_eq!(back, value, "only whitespace moved");
+    }
 }

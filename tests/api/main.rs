@@ -1,10 +1,12 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
 mod browser;
 mod browser_ik;
+mod browser_link;
 mod clients;
 mod closed_form;
 mod contract;
 mod crash;
+mod docs_examples;
 mod errors;
 mod etags;
 mod generated_clients;

@@ -554,3 +554,43 @@ fn ik_path_prints_the_steps_and_exits_1_when_it_stops() {
     assert!(!ok && err.contains("stopped at step"), "{err}");
     assert!(path["stop"]["reason"].is_string() && path["fraction"].as_f64().unwrap() < 1.0);
 }
+
+/// Matrices print one row per line (and other lists of numbers on one line),
+/// the JSON unchanged: `fk`, `jacobian` and `link-transforms` alike.
+#[test]
+fn matrices_print_one_row_per_line() {
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "0,0,0,0,0,0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let lines: Vec<&str> = text.lines().map(str::trim).collect();
+    for row in [
+        "[1.0, -0.0, 0.0, 0.4521],",
+        "[0.0, 1.0, 0.0, -0.15005],",
+        "[0.0, -0.0, 1.0, 1.10363],",
+        "[0.0, 0.0, 0.0, 1.0]",
+    ] {
+        assert!(
+            lines.contains(&row),
+            "row {row} on a line of its own:\n{text}"
+        );
+    }
+    assert!(
+        lines.contains(&"\"position\": [0.4521, -0.15005, 1.10363],"),
+        "{text}"
+    );
+    let printed = stdout_json(&out);
+    assert_eq!(printed["pose"]["matrix"][0][3], 0.4521, "still JSON");
+    let out = kinserve()
+        .args(["jacobian", "--robot", "planar_2dof", "--joints", "0,0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let rows = text
+        .lines()
+        .filter(|l| l.trim().starts_with("[0.0, "))
+        .count();
+    assert!(rows >= 6, "six Jacobian rows, one per line:\n{text}");
+    stdout_json(&out);
+}

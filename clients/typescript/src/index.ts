@@ -160,6 +160,11 @@ export class KinserveClient {
     return this.json("POST", robotPath(name, "/ik/batch"), body);
   }
 
+  /** `POST /v1/robots/{name}/ik/path`: a Cartesian path from `start` through waypoints (a stopped path is an answer with `stop`). */
+  ikPath(name: string, body: Body<"ik_path">): Promise<Answer<"ik_path">> {
+    return this.json("POST", robotPath(name, "/ik/path"), body);
+  }
+
   /** `POST /v1/robots/{name}/link-transforms`. */
   linkTransforms(name: string, body: Body<"link_transforms">): Promise<Answer<"link_transforms">> {
     return this.json("POST", robotPath(name, "/link-transforms"), body);
@@ -219,6 +224,7 @@ export const OPERATIONS: { readonly [K in OperationId]: keyof KinserveClient } =
   stream: "stream",
   ik: "ik",
   ik_batch: "ikBatch",
+  ik_path: "ikPath",
   jacobian: "jacobian",
   jacobian_batch: "jacobianBatch",
   link_transforms: "linkTransforms",

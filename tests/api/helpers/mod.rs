@@ -10,6 +10,7 @@ pub(crate) mod browser;
 pub(crate) mod checker;
 pub(crate) mod corpus;
 pub(crate) mod cross_protocol;
+pub(crate) mod doc_blocks;
 pub(crate) mod grpc;
 pub(crate) mod h2grpc;
 pub(crate) mod http;

@@ -122,11 +122,24 @@ async function loadRobotList(preferred) {
   return pick;
 }
 
+/** The robot named by the page address (`/?robot=ur5e`), if any. */
+function robotFromAddress() {
+  return new URLSearchParams(location.search).get('robot');
+}
+
+/** Keeps `?robot=` in the address in step with the robot shown (no reload, no history entry). */
+function showRobotInAddress(name) {
+  const url = new URL(location.href);
+  if (url.searchParams.get('robot') === name) return;
+  url.searchParams.set('robot', name);
+  history.replaceState(null, '', url);
+}
+
 async function start() {
   let delay = 500;
   for (;;) {
     try {
-      const pick = await loadRobotList(DEFAULT_ROBOT);
+      const pick = await loadRobotList(robotFromAddress() || DEFAULT_ROBOT);
       showGlobalError('');
       if (pick === undefined) {
         showGlobalError('The server has no robots.');
@@ -218,6 +231,7 @@ async function selectRobot(name) {
   if (state.stream) state.stream.close();
   state.stream = null;
   state.name = name;
+  showRobotInAddress(name);
   setWsStatus('offline');
   setWorkspaceBusy(false);
   $('workspace-info').textContent = 'Samples random configurations within the joint limits and plots the tool positions.';
