@@ -2,7 +2,9 @@
 //! real server: the pytest suite (both transports, sync and async, numpy
 //! shapes, typed errors, streams, README examples, `mypy --strict`) and the
 //! TypeScript suite (`tsc --strict`, `node --test`, README examples), with
-//! the expected poses from the kinematics library. Also: the OpenAPI snapshot
+//! the expected poses from the kinematics library; every `solutions: "all"`
+//! answer the Python suite gets is handed back (`KINSERVE_OUT`) and each
+//! solution checked here by the library's FK. Also: the OpenAPI snapshot
 //! `clients/openapi.json` the clients are generated from is the server's
 //! document (`KINSERVE_UPDATE_CLIENTS=1` rewrites it).
 //!
