@@ -111,8 +111,11 @@ async fn assert_shows_config(app: &TestApp, b: &Browser, robot: &str, joints: &[
 /// A JSON string the page left in a `data-` attribute (`expr`), parsed.
 async fn page_json(b: &Browser, expr: &str) -> Value {
     let s = b.exec(&format!("return {expr};"), json!([])).await;
-    serde_json::from_str(s.as_str().unwrap_or_else(|| panic!("{expr} is a string: {s}")))
-        .unwrap_or_else(|e| panic!("{expr}: {e}"))
+    serde_json::from_str(
+        s.as_str()
+            .unwrap_or_else(|| panic!("{expr} is a string: {s}")),
+    )
+    .unwrap_or_else(|e| panic!("{expr}: {e}"))
 }
 
 /// Solutions that differ only by whole turns of joints look alike (one ghost
@@ -186,8 +189,11 @@ async fn every_ik_solution_is_drawn_as_a_ghost_and_clicking_one_moves_the_arm() 
     set_joints(&b, &q).await;
     let btn = b.find("#ik-all").await;
     assert_eq!(
-        b.exec("return document.getElementById('ik-all').disabled;", json!([]))
-            .await,
+        b.exec(
+            "return document.getElementById('ik-all').disabled;",
+            json!([])
+        )
+        .await,
         false,
         "PUMA 560 has a closed form: the control is enabled"
     );
@@ -203,7 +209,11 @@ async fn every_ik_solution_is_drawn_as_a_ghost_and_clicking_one_moves_the_arm() 
     .await;
 
     // The page asked for the shown pose, seeded with the shown joints.
-    let req = page_json(&b, "document.getElementById('ik-all-status').dataset.request").await;
+    let req = page_json(
+        &b,
+        "document.getElementById('ik-all-status').dataset.request",
+    )
+    .await;
     assert_eq!(req["solutions"], "all", "{req}");
     assert_all_close(&numbers(&req["seed"]), &q, 0.0, "seed");
     let fk = fk_ok(&app, "puma560", json!({"joints": q, "angle_unit": "deg"})).await;
@@ -223,7 +233,10 @@ async fn every_ik_solution_is_drawn_as_a_ghost_and_clicking_one_moves_the_arm() 
         .iter()
         .map(|s| numbers(&s["joints"]))
         .collect();
-    assert!(sols.len() >= 2, "more than one solution to pick from: {ans}");
+    assert!(
+        sols.len() >= 2,
+        "more than one solution to pick from: {ans}"
+    );
     let page = b
         .exec(
             "return {count: Number(document.getElementById('ik-all-status').dataset.count),
@@ -263,7 +276,14 @@ async fn every_ik_solution_is_drawn_as_a_ghost_and_clicking_one_moves_the_arm() 
     )
     .await;
     wait_joints_shown(&b, &sols[last], 1e-9).await;
-    assert_shows_config(&app, &b, "puma560", &sols[last], "after clicking the last entry").await;
+    assert_shows_config(
+        &app,
+        &b,
+        "puma560",
+        &sols[last],
+        "after clicking the last entry",
+    )
+    .await;
     let (_, pos) = shown(&b).await;
     assert_all_close(
         &pos,
@@ -283,7 +303,8 @@ async fn every_ik_solution_is_drawn_as_a_ghost_and_clicking_one_moves_the_arm() 
         .iter()
         .find(|l| l[2] == 0)
         .unwrap_or_else(|| panic!("a label for solution 0: {labels:?}"));
-    b.screenshot(&target_dir().join("playground-ghosts.png")).await;
+    b.screenshot(&target_dir().join("playground-ghosts.png"))
+        .await;
     click_canvas(&b, label[0].as_f64().unwrap(), label[1].as_f64().unwrap()).await;
     wait_joints_shown(&b, &sols[0], 1e-9).await;
     assert_shows_config(&app, &b, "puma560", &sols[0], "after clicking its ghost").await;
@@ -420,7 +441,8 @@ async fn a_cartesian_path_is_drawn_and_played_and_a_short_one_says_why() {
         json!([]),
     )
     .await;
-    b.screenshot(&target_dir().join("playground-path.png")).await;
+    b.screenshot(&target_dir().join("playground-path.png"))
+        .await;
     let status = b.text(&b.find("#path-status").await).await;
     let want = format!("Stopped at step {}", ans["stop"]["step"]);
     assert!(
