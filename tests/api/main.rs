@@ -26,5 +26,8 @@ mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod secure_defaults;
+mod tls;
+mod tls_postgres;
+mod tls_process;
 mod urdf_import;
 mod ws;
