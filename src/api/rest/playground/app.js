@@ -1,5 +1,4 @@
-// kinserve playground: main module. Plain ES module, no third-party code.
-// Server strings only ever reach the page through textContent.
+// kinserve playground: main module (plain ES, no third-party code); server strings reach the page only through textContent.
 
 import { ApiError, FkStream, fkBatch, getRobot, importUrdf, jacobianBatch, listRobots, putRobot } from './api.js';
 import { jsonPathLines, lineForField } from './jsonlines.js';
