@@ -66,7 +66,16 @@ pub fn run(cli: Cli) -> ExitCode {
             Ok(robot) => crate::bench::run(&robot, &args),
             Err(code) => code,
         },
-        Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
+        Some(Command::Healthcheck {
+            addr,
+            timeout,
+            tls,
+            client_cert,
+            client_key,
+        }) => {
+            let client = client_cert.as_deref().zip(client_key.as_deref());
+            healthcheck(&addr, timeout, tls.then_some(client))
+        }
     }
 }
 
@@ -630,23 +639,32 @@ pub fn name_from_file(path: &std::path::Path) -> String {
     }
 }
 
-/// `GET /readyz` over a plain TCP connection (no HTTP client needed in the image).
-fn healthcheck(addr: &str, timeout: Duration) -> ExitCode {
+/// `GET /readyz` over a plain TCP connection (no HTTP client needed in the
+/// image), or over TLS when `tls` is set (with the client certificate and
+/// key files it holds, if any).
+fn healthcheck(
+    addr: &str,
+    timeout: Duration,
+    tls: Option<Option<(&std::path::Path, &std::path::Path)>>,
+) -> ExitCode {
     let probe = || -> std::io::Result<bool> {
         let sock = addr
             .to_socket_addrs()?
             .next()
             .ok_or_else(|| std::io::Error::other("address resolves to nothing"))?;
-        let mut s = TcpStream::connect_timeout(&sock, timeout)?;
+        let s = TcpStream::connect_timeout(&sock, timeout)?;
         s.set_read_timeout(Some(timeout))?;
         s.set_write_timeout(Some(timeout))?;
-        s.write_all(
-            format!("GET /readyz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes(),
-        )?;
-        let mut buf = [0u8; 64];
-        let n = s.read(&mut buf)?;
-        let head = String::from_utf8_lossy(&buf[..n]);
-        Ok(head.starts_with("HTTP/1.1 200") || head.starts_with("HTTP/1.0 200"))
+        match tls {
+            None => ask_ready(s, addr),
+            Some(client) => {
+                let host = addr.rsplit_once(':').map_or(addr, |(h, _)| h);
+                let host = host.trim_start_matches('[').trim_end_matches(']');
+                let s =
+                    crate::tls::probe::connect(s, host, client).map_err(std::io::Error::other)?;
+                ask_ready(s, addr)
+            }
+        }
     };
     match probe() {
         Ok(true) => ExitCode::SUCCESS,
@@ -659,6 +677,18 @@ fn healthcheck(addr: &str, timeout: Duration) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Sends `GET /readyz` on `s`; whether the answer is 200.
+fn ask_ready(mut s: impl Read + Write, addr: &str) -> std::io::Result<bool> {
+    s.write_all(
+        format!("GET /readyz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes(),
+    )?;
+    s.flush()?;
+    let mut buf = [0u8; 64];
+    let n = s.read(&mut buf)?;
+    let head = String::from_utf8_lossy(&buf[..n]);
+    Ok(head.starts_with("HTTP/1.1 200") || head.starts_with("HTTP/1.0 200"))
 }
 
 #[cfg(test)]

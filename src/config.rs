@@ -79,6 +79,25 @@ pub enum Command {
         /// Give up after this long.
         #[arg(long, default_value = "3s", value_parser = parse_duration)]
         timeout: Duration,
+        /// Probe over TLS (a server with --tls-cert); the server's
+        /// certificate is not checked: the probe asks about readiness, not identity.
+        #[arg(long, env = "KINSERVE_HEALTHCHECK_TLS", action = clap::ArgAction::SetTrue)]
+        tls: bool,
+        /// With --tls: present this client certificate (PEM), for a server
+        /// that requires one (--tls-client-ca). Needs --client-key.
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_CERT",
+            requires = "client_key"
+        )]
+        client_cert: Option<PathBuf>,
+        /// The private key of --client-cert (PEM).
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_KEY",
+            requires = "client_cert"
+        )]
+        client_key: Option<PathBuf>,
     },
 }
 
@@ -561,6 +580,9 @@ pub struct ServeConfig {
     /// long after it opened is closed (at most --stream-idle-timeout).
     #[arg(long, env = "KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub stream_first_message_timeout: Duration,
+    /// TLS on the listeners and to the database (docs/tls.md).
+    #[command(flatten)]
+    pub tls: crate::tls::TlsOptions,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -603,6 +625,7 @@ impl std::fmt::Debug for ServeConfig {
             client_share_percent,
             trust_forwarded_for,
             stream_first_message_timeout,
+            tls,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -642,6 +665,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("client_share_percent", client_share_percent)
             .field("trust_forwarded_for", trust_forwarded_for)
             .field("stream_first_message_timeout", stream_first_message_timeout)
+            .field("tls", tls)
             .finish()
     }
 }
@@ -859,6 +883,7 @@ mod tests {
             ("--shutdown-grace", "1e30s", "at most 24h"),
             ("--shutdown-timeout", "1e30s", "at most 24h"),
             ("--database-resync-interval", "1e30s", "at most 24h"),
+            ("--tls-reload-interval", "1e30s", "at most 24h"),
             ("--ik-time-limit", "1e18s", "at most 60s"),
             ("--max-batch", "1000001", "at most 1000000"),
             ("--max-robots", "1000001", "at most 1000000"),

@@ -140,7 +140,9 @@ impl Service {
                 } else {
                     "missing"
                 };
-                tracing::info!(target: "kinserve::audit", token, result = "refused", "registry change refused: missing or invalid bearer token");
+                let cert = crate::tls::peer::current_subject();
+                let client_cert = cert.as_deref();
+                tracing::info!(target: "kinserve::audit", token, client_cert, result = "refused", "registry change refused: missing or invalid bearer token");
                 Err(Error::Unauthenticated)
             }
         }
@@ -330,19 +332,22 @@ impl Service {
 
     /// One audit line per registry change (target `kinserve::audit`): what,
     /// which robot, the outcome, and who — whether a bearer token was
-    /// required and so presented (the token itself is never logged).
+    /// required and so presented (the token itself is never logged), and
+    /// the subject of the connection's TLS client certificate, if any.
     fn audit<T>(&self, action: &str, robot: &str, result: &Result<T>) {
         let who = if self.auth_required() {
             "bearer token"
         } else {
             "anyone (no API token configured)"
         };
+        let cert = crate::tls::peer::current_subject();
+        let client_cert = cert.as_deref();
         match result {
             Ok(_) => {
-                tracing::info!(target: "kinserve::audit", action, robot, who, result = "ok", "registry change")
+                tracing::info!(target: "kinserve::audit", action, robot, who, client_cert, result = "ok", "registry change")
             }
             Err(e) => {
-                tracing::info!(target: "kinserve::audit", action, robot, who, result = "refused", error = %e, "registry change refused")
+                tracing::info!(target: "kinserve::audit", action, robot, who, client_cert, result = "refused", error = %e, "registry change refused")
             }
         }
     }

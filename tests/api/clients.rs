@@ -2,7 +2,9 @@
 //! real server: the pytest suite (both transports, sync and async, numpy
 //! shapes, typed errors, streams, README examples, `mypy --strict`) and the
 //! TypeScript suite (`tsc --strict`, `node --test`, README examples), with
-//! the expected poses from the kinematics library. Also: the OpenAPI snapshot
+//! the expected poses from the kinematics library; every `solutions: "all"`
+//! answer the Python suite gets is handed back (`KINSERVE_OUT`) and each
+//! solution checked here by the library's FK. Also: the OpenAPI snapshot
 //! `clients/openapi.json` the clients are generated from is the server's
 //! document (`KINSERVE_UPDATE_CLIENTS=1` rewrites it).
 //!
@@ -55,8 +57,14 @@ async fn app_and_expected(dir: &Path) -> (TestApp, PathBuf) {
     })
     .await;
     let q = [0.3, -0.4, 0.6, 0.2, -0.5, 0.7];
-    let tool = library_robot("puma560").fk_unchecked(&q);
-    let expected = json!({"fk": {"robot": "puma560", "joints": q, "matrix": tool.matrix()}});
+    let puma = library_robot("puma560");
+    let tool = puma.fk_unchecked(&q);
+    // The IK target of the every-solution tests (20, -30, 45, 10, 50, -20 deg).
+    let q_ik = [20.0f64, -30.0, 45.0, 10.0, 50.0, -20.0].map(f64::to_radians);
+    let expected = json!({
+        "fk": {"robot": "puma560", "joints": q, "matrix": tool.matrix()},
+        "ik": {"robot": "puma560", "joints": q_ik, "matrix": puma.fk_unchecked(&q_ik).matrix()},
+    });
     let path = dir.join("expected.json");
     std::fs::write(&path, serde_json::to_vec_pretty(&expected).unwrap()).unwrap();
     (app, path)
@@ -68,6 +76,7 @@ fn with_server(cmd: &mut Command, app: &TestApp, expected: &Path) {
         .env("KINSERVE_GRPC", grpc)
         .env("KINSERVE_TOKEN", TOKEN)
         .env("KINSERVE_EXPECTED", expected)
+        .env("KINSERVE_OUT", expected.parent().expect("a directory"))
         .env("KINSERVE_REPO", env!("CARGO_MANIFEST_DIR"))
         .env(
             "KINSERVE_STREAM_IDLE_MS",
@@ -90,6 +99,53 @@ async fn the_openapi_snapshot_of_the_clients_is_the_servers_document() {
         "clients/openapi.json is not the server's /openapi.json: run \
          KINSERVE_UPDATE_CLIENTS=1 cargo test --test api clients, then rebuild the clients"
     );
+}
+
+/// FK agreement asked of every IK solution the Python suite got (length
+/// unit, matrix entries).
+const FK_TOL: f64 = 1e-10;
+
+/// The `solutions: "all"` answer the Python suite wrote (`KINSERVE_OUT`):
+/// every solution, checked here by the kinematics library's FK against the
+/// target, and within the joint limits. Returns how many there were.
+fn check_handed_off_solutions(path: &Path) -> usize {
+    let text = std::fs::read(path)
+        .unwrap_or_else(|e| panic!("{}: the Python suite writes it: {e}", path.display()));
+    let doc: Value = serde_json::from_slice(&text).unwrap();
+    let robot = library_robot(doc["robot"].as_str().unwrap());
+    let floats = |v: &Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let target: Vec<Vec<f64>> = doc["target"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(floats)
+        .collect();
+    let solutions = doc["solutions"].as_array().unwrap();
+    for s in solutions {
+        let q = floats(s);
+        let opts = kinserve::model::FkOptions::default();
+        assert!(
+            robot.check_joints(&q, &opts).is_ok(),
+            "within the limits: {q:?}"
+        );
+        let m = robot.fk_unchecked(&q).matrix();
+        for (i, row) in target.iter().enumerate() {
+            for (j, want) in row.iter().enumerate() {
+                assert!(
+                    (m[i][j] - want).abs() < FK_TOL,
+                    "{}: the library's FK of {q:?} is {m:?}, not the target",
+                    path.display()
+                );
+            }
+        }
+    }
+    solutions.len()
 }
 
 #[tokio::test]
@@ -115,6 +171,10 @@ async fn the_python_client_passes_its_suite_against_the_server() {
         .current_dir(&project);
     with_server(&mut pytest, &app, &expected);
     run_ok(&mut pytest, "pytest clients/python").await;
+    for transport in ["rest", "grpc"] {
+        let n = check_handed_off_solutions(&dir.path().join(format!("ik_all_{transport}.json")));
+        assert!(n >= 2, "{transport}: {n} solutions");
+    }
     run_ok(
         Command::new("python3")
             .args(["-m", "mypy", "--strict", "--cache-dir"])

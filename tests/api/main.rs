@@ -1,6 +1,7 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
 mod browser;
 mod browser_ik;
+mod browser_ik_tools;
 mod browser_link;
 mod clients;
 mod closed_form;
@@ -25,5 +26,8 @@ mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod secure_defaults;
+mod tls;
+mod tls_postgres;
+mod tls_process;
 mod urdf_import;
 mod ws;

@@ -8,7 +8,7 @@ import { KinserveError, isProblem } from "./errors.js";
 import { FkStream, type StreamOptions } from "./stream.js";
 
 export { KinserveError, isProblem, type Problem } from "./errors.js";
-export { FkStream, replyError, type StreamOptions, type WsReply, type WsRequest } from "./stream.js";
+export { FkStream, replyError, replyPath, type StreamOptions, type WsReply, type WsRequest } from "./stream.js";
 export { GENERATED_FROM, canonicalJson } from "./generated-from.js";
 export type { components, operations, paths } from "./schema.js";
 

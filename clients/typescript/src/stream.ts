@@ -1,4 +1,4 @@
-// The WebSocket stream helper: FK / Jacobian / IK requests on
+// The WebSocket stream helper: FK / Jacobian / IK / Cartesian path requests on
 // /v1/robots/{name}/fk/stream with at most one request in flight; a send
 // while one is in flight replaces the unsent one, which goes out when the
 // reply comes (latest wins: what a UI following a slider wants). Reconnects
@@ -21,6 +21,13 @@ export interface StreamOptions {
   onReply?: (reply: WsReply) => void;
   /** The WebSocket constructor (default: the platform's `WebSocket`). */
   WebSocket?: typeof WebSocket;
+}
+
+/** The path of a reply to an `ik_path` request (points, fraction,
+ * waypoints reached, stop), or undefined for any other reply. */
+export function replyPath(reply: WsReply): components["schemas"]["WsIkPath"] | undefined {
+  if (reply.error || !Array.isArray((reply as Partial<WsReply>).points)) return undefined;
+  return { points: reply.points, fraction: reply.fraction, waypoints_reached: reply.waypoints_reached, stop: reply.stop ?? null };
 }
 
 /** The error of a failed reply, or undefined. */

@@ -7,7 +7,7 @@ import assert from "node:assert/strict";
 import { createHash } from "node:crypto";
 import { readFileSync } from "node:fs";
 
-import { GENERATED_FROM, KinserveClient, KinserveError, OPERATIONS, canonicalJson, replyError, type WsReply } from "../src/index.js";
+import { GENERATED_FROM, KinserveClient, KinserveError, OPERATIONS, canonicalJson, replyError, replyPath, type Answer, type Body, type Schemas, type WsReply } from "../src/index.js";
 import * as readme from "./readme.generated.js";
 
 const BASE = process.env.KINSERVE_URL ?? "http://127.0.0.1:8080";
@@ -142,9 +142,91 @@ test("stream: reconnects after the server closes an idle socket", { skip: IDLE_M
   stream.close();
 });
 
-test("README examples run", async () => {
-  assert.ok(readme.BLOCKS >= 3);
-  const blocks = [readme.block1, readme.block2, readme.block3];
-  assert.equal(blocks.length, readme.BLOCKS);
-  for (const block of blocks) await block(BASE, TOKEN);
+test("README examples run (this package's and the repository's From TypeScript)", async () => {
+  assert.ok(readme.BLOCKS >= 4 && readme.REPO_BLOCKS >= 1, `${readme.BLOCKS} blocks, ${readme.REPO_BLOCKS} from the repository's README`);
+  assert.equal(readme.ALL.length, readme.BLOCKS);
+  for (const block of readme.ALL) await block(BASE, TOKEN);
+});
+
+const PATH_START = [5, -20, 35, 10, 30, -15];
+
+/** The path of the Python suite: a 4 cm leg up, then a waypoint out of reach. */
+async function pathBody(): Promise<Body<"ik_path">> {
+  const pose = (await client.fk("puma560", { joints: PATH_START, angle_unit: "deg" })).pose;
+  assert.ok(pose);
+  const [x, y, z] = pose.position;
+  return {
+    start: PATH_START, angle_unit: "deg", max_step_length: 0.01,
+    waypoints: [{ position: [x, y, z + 0.04], quaternion: pose.quaternion }, { position: [2, 0, 0.5], quaternion: pose.quaternion }],
+  };
+}
+
+test("ikPath: points, fraction, waypoints reached and why it stopped", async () => {
+  const body = await pathBody();
+  const path: Answer<"ik_path"> = await client.ikPath("puma560", body);
+  assert.equal(path.points[0]?.length, 6);
+  close(path.points[0] ?? [], PATH_START, 1e-12, "start");
+  assert.equal(path.waypoints_reached, 1);
+  assert.ok(path.fraction > 0 && path.fraction < 1, `${path.fraction}`);
+  const stop = path.stop;
+  assert.ok(stop);
+  const reason: Schemas["PathStopReason"] = stop.reason;
+  assert.ok(["unreachable", "joint_limits", "joint_jump"].includes(reason), reason);
+  assert.equal(stop.step, path.points.length);
+  assert.equal(stop.waypoint, 1);
+  // The first leg ends on the first waypoint (4 steps of 1 cm).
+  const leg = await client.fk("puma560", { joints: path.points[4] ?? [], angle_unit: "deg" });
+  close(leg.pose?.position ?? [], body.waypoints[0]?.position ?? [], 1e-9, "end of the first leg");
+  // A joint step too small for the first step: stops at step 1 saying so.
+  const jump = await client.ikPath("puma560", { ...body, waypoints: body.waypoints.slice(0, 1), max_joint_step: 1e-4 });
+  assert.equal(jump.stop?.reason, "joint_jump");
+  assert.equal(jump.stop?.step, 1);
+  assert.equal(jump.points.length, 1);
+  assert.equal(jump.fraction, 0);
+  const bad = await client.ikPath("puma560", { ...body, max_step_length: 0 }).catch((e: unknown) => e);
+  assert.ok(bad instanceof KinserveError && bad.kind === "invalid-input" && "max_step_length" in bad.fields);
+});
+
+test("ik with solutions: all: every solution typed, each reaching the target", async () => {
+  const q = [20, -30, 45, 10, 50, -20].map((d) => (d * Math.PI) / 180);
+  const target = (await client.fk("puma560", { joints: q })).pose;
+  assert.ok(target);
+  const ik = await client.ik("puma560", { target: { matrix: target.matrix }, solutions: "all", solver: "analytic", max_solutions: 32 });
+  const solver: Schemas["IkSolverUsed"] = ik.solver;
+  assert.equal(solver, "analytic");
+  assert.equal(ik.iterations, 0);
+  assert.equal(ik.truncated, false);
+  assert.ok(ik.branch && [0, 1].includes(ik.branch.shoulder) && [0, 1].includes(ik.branch.elbow));
+  const solutions: Schemas["IkSolutionItem"][] = ik.solutions ?? [];
+  assert.ok(solutions.length >= 2, `${solutions.length} solutions`);
+  close(solutions[0]?.joints ?? [], ik.joints, 0, "the first is the answer");
+  const reached = await client.fkBatch("puma560", { configurations: solutions.map((s) => s.joints), pose_format: "matrix" });
+  for (const [i, m] of (reached.matrices ?? []).entries()) close(m, target.matrix.slice(0, 3), 1e-10, `solution ${i}`);
+  for (const s of solutions) {
+    assert.ok(s.branch !== null && s.branch !== undefined);
+    assert.ok(s.position_error < 1e-9 && s.orientation_error < 1e-9 && s.distance >= 0);
+  }
+  const few = await client.ik("puma560", { target: { matrix: target.matrix }, solutions: "all", max_solutions: 2 });
+  assert.equal(few.truncated, true);
+  assert.deepEqual(few.solutions?.map((s) => s.joints), solutions.slice(0, 2).map((s) => s.joints));
+  const best = await client.ik("puma560", { target: { matrix: target.matrix } });
+  assert.equal(best.solutions, undefined);
+});
+
+test("stream: an ik_path message is answered with the path", async () => {
+  const body = await pathBody();
+  const want = await client.ikPath("puma560", body);
+  const stream = client.stream("puma560");
+  await stream.opened;
+  stream.send({ ik_path: body });
+  const reply = await stream.next();
+  assert.equal(replyError(reply), undefined);
+  const path = replyPath(reply);
+  assert.ok(path);
+  assert.deepEqual(path.points, want.points);
+  assert.equal(path.fraction, want.fraction);
+  assert.deepEqual(path.stop, want.stop);
+  stream.send({ joints: [0.1, 0.2, 0.3, 0.1, 0.2, 0.3] });
+  assert.equal(replyPath(await stream.next()), undefined, "an FK reply has no path");
+  stream.close();
 });

@@ -122,6 +122,7 @@ where
                         method = %method,
                         code,
                         duration_ms = start.elapsed().as_secs_f64() * 1e3,
+                        client_cert = crate::tls::peer::current_subject().as_deref(),
                         "call"
                     );
                 }

@@ -149,15 +149,22 @@ impl GrpcService {
     ) -> End {
         let idle = self.settings.stream_idle_timeout;
         let idle_status = || {
-            Status::deadline_exceeded(format!(
-                "stream idle timeout: no message from the client and no reply taken for {idle:?}"
-            ))
+            Status::from(Error::RequestTimeout {
+                detail: format!(
+                    "stream idle timeout: no message from the client and no reply taken for {idle:?}"
+                ),
+            })
+        };
+        let closing = || {
+            Status::from(Error::Unavailable {
+                detail: "server shutting down".into(),
+            })
         };
         // Until the first message, the (shorter) first-message timeout.
         let mut wait = idle.min(self.settings.stream_first_message_timeout);
         loop {
             if self.shutdown.is_cancelled() {
-                return End::Closed(Status::unavailable("server shutting down"));
+                return End::Closed(closing());
             }
             // A message already received is taken at once; only when none is
             // there does the task wait (shutdown, cancel, idle timeout). One
@@ -166,7 +173,7 @@ impl GrpcService {
             let next = match ready {
                 Some(r) => Ok(r),
                 None => tokio::select! {
-                    _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                    _ = self.shutdown.cancelled() => return End::Closed(closing()),
                     _ = replies.closed() => return End::Quiet, // client cancelled
                     r = tokio::time::timeout(wait, inbound.message()) => r,
                 },
@@ -195,7 +202,7 @@ impl GrpcService {
                 Err(Some(resp)) => resp,
             };
             let sent = tokio::select! {
-                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                _ = self.shutdown.cancelled() => return End::Closed(closing()),
                 r = tokio::time::timeout(idle, replies.send(resp)) => r,
             };
             match sent {

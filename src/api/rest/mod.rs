@@ -447,6 +447,7 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             status = resp.status().as_u16(),
             duration_ms = start.elapsed().as_secs_f64() * 1e3,
             request_id = %request_id,
+            client_cert = crate::tls::peer::current_subject().as_deref(),
             "request"
         );
     }

@@ -21,6 +21,7 @@ pub(crate) mod postgres;
 pub(crate) mod process;
 pub(crate) mod raw;
 pub(crate) mod readme;
+pub(crate) mod tls;
 pub(crate) mod witness;
 pub(crate) mod ws;
 

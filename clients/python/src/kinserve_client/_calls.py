@@ -12,7 +12,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Generic, Mapping, TypeVar, Union
+from typing import Any, Callable, Generic, Mapping, Sequence, TypeVar, Union, cast
 
 import httpx
 import numpy as np
@@ -92,6 +92,27 @@ def targets_json(targets: ArrayLike) -> list[dict[str, JSON]]:
     if a.ndim == 2 and a.shape[1] == 3:
         return [{"position": p} for p in a.tolist()]
     raise ValueError(f"IK targets are (N, 4, 4) matrices or (N, 3) positions, got shape {a.shape}")
+
+
+def waypoints_json(waypoints: ArrayLike | Sequence[ArrayLike | Mapping[str, Any]]) -> list[dict[str, JSON]]:
+    """Path waypoints: an (N, 4, 4) array of matrices, (N, 3) of positions
+    (with ``position_only``), or a sequence of single targets (each as
+    :func:`target_json` takes it)."""
+    if isinstance(waypoints, Sequence) and not isinstance(waypoints, str):
+        if any(isinstance(w, Mapping) for w in waypoints):
+            return [target_json(w) for w in waypoints]
+    return targets_json(cast(ArrayLike, waypoints))
+
+
+def ik_choices(
+    solver: str | None, solutions: str | None, max_solutions: int | None
+) -> dict[str, JSON]:
+    """The IK solver fields that were given, by their REST names."""
+    out: dict[str, JSON] = {}
+    for key, value in [("solver", solver), ("solutions", solutions), ("max_solutions", max_solutions)]:
+        if value is not None:
+            out[key] = value
+    return out
 
 
 def load_model(model: Mapping[str, Any] | str | os.PathLike[str]) -> dict[str, JSON]:

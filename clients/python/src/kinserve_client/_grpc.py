@@ -13,24 +13,27 @@ types, not on REST.
 from __future__ import annotations
 
 import os
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ._calls import (
     GrpcCall,
     configurations,
+    ik_choices,
     joint_vector,
     load_model,
     load_urdf,
     pad_rows,
     target_json,
+    waypoints_json,
 )
 from ._pb.kinematics.v1 import kinematics_pb2 as pb
 from ._pbconv import (
     enum_text,
     enum_value,
     extras,
+    ik_path,
     ik_result,
     pose,
     robot_from_pb,
@@ -48,7 +51,10 @@ from .types import (
     FkResult,
     Frame,
     IkBatch,
+    IkPath,
     IkResult,
+    IkSolutions,
+    IkSolver,
     Jacobian,
     JacobianBatch,
     LinkTransforms,
@@ -176,6 +182,8 @@ def _ik_request(
     restarts: int | None,
     options: Mapping[str, JSON],
 ) -> Any:
+    """Sets the IK request fields (``options`` by their REST names:
+    ``solver``, ``solutions``, ``max_solutions`` and any newer ones)."""
     msg.angle_unit = enum_value(pb.AngleUnit, angle_unit)
     msg.position_only = position_only
     if seed is not None:
@@ -206,6 +214,7 @@ class GrpcOps:
                     convention=enum_text(pb.Convention, s.convention, "standard"),
                     length_unit=_unit(s.length_unit),
                     source=enum_text(pb.RobotSource, s.source, ""),
+                    ik_class=s.ik_class if s.HasField("ik_class") else None,
                 )
                 for s in r.robots
             ]
@@ -411,14 +420,20 @@ class GrpcOps:
         tolerance: float | None = None,
         max_iterations: int | None = None,
         restarts: int | None = None,
+        solver: IkSolver | None = None,
+        solutions: IkSolutions | None = None,
+        max_solutions: int | None = None,
         **options: JSON,
     ) -> GrpcCall[IkResult]:
         req = pb.InverseKinematicsRequest(robot=robot, target=target_to_pb(target_json(target)))
+        options = {**ik_choices(solver, solutions, max_solutions), **options}
         _ik_request(req, seed, angle_unit, position_only, tolerance, max_iterations, restarts, options)
+        every = options.get("solutions") == "all"
 
         def parse(r: Any) -> IkResult:
             result = ik_result(
                 r.result,
+                all_solutions=every,
                 robot=r.robot,
                 length_unit=_unit(r.length_unit),
                 angle_unit=enum_text(pb.AngleUnit, r.angle_unit, "rad"),
@@ -441,11 +456,16 @@ class GrpcOps:
         tolerance: float | None = None,
         max_iterations: int | None = None,
         restarts: int | None = None,
+        solver: IkSolver | None = None,
+        solutions: IkSolutions | None = None,
+        max_solutions: int | None = None,
         **options: JSON,
     ) -> GrpcCall[IkBatch]:
         t = np.asarray(targets, dtype=np.float64)
         head = pb.InverseKinematicsBatchRequest(robot=robot)
+        options = {**ik_choices(solver, solutions, max_solutions), **options}
         _ik_request(head, seed, angle_unit, position_only, tolerance, max_iterations, restarts, options)
+        every = options.get("solutions") == "all"
         if t.ndim == 3 and t.shape[1:] == (4, 4):
             blob = nested_rows([2, 1, 1], t.reshape(-1, 16))
         elif t.ndim == 2 and t.shape[1] == 3:
@@ -455,11 +475,51 @@ class GrpcOps:
         request = head.SerializeToString() + blob
 
         def parse(r: Any) -> IkBatch:
-            results = [ik_result(x) for x in r.results]
+            results = [ik_result(x, all_solutions=every) for x in r.results]
             unit = enum_text(pb.AngleUnit, r.angle_unit, "rad")
             return ik_batch_arrays(r.robot, _unit(r.length_unit), unit, results)
 
         return GrpcCall("InverseKinematicsBatch", request, pb.InverseKinematicsBatchResponse, parse)
+
+    def ik_path(
+        self,
+        /,
+        robot: str,
+        start: ArrayLike,
+        waypoints: ArrayLike | Sequence[ArrayLike | Mapping[str, Any]],
+        *,
+        angle_unit: AngleUnit = "rad",
+        position_only: bool = False,
+        max_step_length: float | None = None,
+        max_step_angle: float | None = None,
+        max_joint_step: float | None = None,
+        tolerance: float | None = None,
+        solver: IkSolver | None = None,
+        max_iterations: int | None = None,
+        restarts: int | None = None,
+    ) -> GrpcCall[IkPath]:
+        req = path_request(
+            robot,
+            {
+                "start": joint_vector(start),
+                "waypoints": waypoints_json(waypoints),
+                "angle_unit": angle_unit,
+                "position_only": position_only,
+                "max_step_length": max_step_length,
+                "max_step_angle": max_step_angle,
+                "max_joint_step": max_joint_step,
+                "tolerance": tolerance,
+                "solver": solver,
+                "max_iterations": max_iterations,
+                "restarts": restarts,
+            },
+        )
+
+        def parse(r: Any) -> IkPath:
+            unit = enum_text(pb.AngleUnit, r.angle_unit, "rad")
+            return ik_path(r, r.robot, _unit(r.length_unit), unit)
+
+        return GrpcCall("InverseKinematicsPath", req, pb.InverseKinematicsPathResponse, parse)
 
     def link_transforms(
         self,
@@ -486,6 +546,26 @@ class GrpcOps:
         return GrpcCall("LinkTransforms", req, pb.LinkTransformsResponse, parse)
 
 
+def path_request(robot: str, body: Mapping[str, Any]) -> Any:
+    """A path request in the REST schema (``start``, ``waypoints`` as
+    targets, the optional fields, ``None`` meaning absent) as an
+    ``InverseKinematicsPathRequest``."""
+    msg = pb.InverseKinematicsPathRequest(
+        robot=robot,
+        angle_unit=enum_value(pb.AngleUnit, body.get("angle_unit", "rad")),
+        position_only=bool(body.get("position_only", False)),
+    )
+    msg.start.joints.extend(float(v) for v in body["start"])
+    for w in body["waypoints"]:
+        msg.waypoints.append(target_to_pb(w))
+    for key in ("max_step_length", "max_step_angle", "max_joint_step", "tolerance", "max_iterations", "restarts"):
+        if body.get(key) is not None:
+            setattr(msg, key, body[key])
+    if body.get("solver") is not None:
+        set_options(msg, {"solver": body["solver"]})
+    return msg
+
+
 def _registered(r: Any) -> Registered:
     return Registered(robot_from_pb(r.robot), r.etag, r.created)
 
@@ -500,6 +580,10 @@ _CODE_NAMES = {int(c.value[0]): c.name for c in __import__("grpc").StatusCode}
 def stream_request(robot: str, request: Mapping[str, Any]) -> Any:
     """A stream request dict (the WebSocket schema) as a ``StreamForwardKinematicsRequest``."""
     out = pb.StreamForwardKinematicsRequest(id=int(request["id"]), robot=robot)
+    path = request.get("ik_path")
+    if path is not None:
+        out.ik_path.CopyFrom(path_request(robot, path))
+        return out
     ik = request.get("ik")
     if ik is not None:
         known = {"target", "seed", "angle_unit", "position_only", "tolerance", "max_iterations", "restarts"}
@@ -544,8 +628,13 @@ def stream_reply(m: Any, requests: Mapping[int, Mapping[str, Any]]) -> Any:
         code = _CODE_NAMES.get(e.code, "UNKNOWN")
         return StreamReply(rid, error=error_from_status(code, e.message, e.SerializeToString()))
     request = requests.get(rid, {})
+    if m.HasField("ik_path"):
+        p = m.ik_path
+        unit = enum_text(pb.AngleUnit, p.angle_unit, "rad")
+        return StreamReply(rid, ik_path=ik_path(p, p.robot, _unit(p.length_unit), unit))
     if m.HasField("ik"):
-        return StreamReply(rid, ik=ik_result(m.ik, length_unit=_unit(m.length_unit)))
+        every = (request.get("ik") or {}).get("solutions") == "all"
+        return StreamReply(rid, ik=ik_result(m.ik, all_solutions=every, length_unit=_unit(m.length_unit)))
     fmt = request.get("pose_format", "full")
     fk = fk_answer("", m.length_unit, m, fmt, bool(request.get("frames")))
     jac = jacobian_of("", m.length_unit, m.jacobian) if m.HasField("jacobian") else None

@@ -16,7 +16,7 @@ from google.protobuf.message import Message
 
 from . import errors
 from ._pb.kinematics.v1 import kinematics_pb2 as pb
-from .types import JSON, Array, IkResult, Pose
+from .types import JSON, Array, IkBranch, IkPath, IkResult, IkSolution, PathStop, Pose
 
 ENUM_PREFIX = {
     "Convention": "CONVENTION_",
@@ -26,6 +26,10 @@ ENUM_PREFIX = {
     "RobotSource": "ROBOT_SOURCE_",
     "PoseFormat": "POSE_FORMAT_",
     "JacobianFrame": "JACOBIAN_FRAME_",
+    "IkSolver": "IK_SOLVER_",
+    "IkSolutions": "IK_SOLUTIONS_",
+    "Singularity": "SINGULARITY_",
+    "PathStopReason": "PATH_STOP_REASON_",
 }
 
 
@@ -180,7 +184,10 @@ def set_options(msg: Message, options: Mapping[str, JSON]) -> None:
         json_format.ParseDict({f.json_name: value}, msg)
 
 
-_IK_KNOWN = {"joints", "converged", "position_error", "orientation_error", "iterations", "pose"}
+_IK_KNOWN = {
+    "joints", "converged", "position_error", "orientation_error", "iterations", "pose",
+    "solver", "branch", "singular", "solutions", "truncated",
+}
 
 
 def extras(msg: Message, known: set[str]) -> dict[str, JSON]:
@@ -205,10 +212,42 @@ def _strip_enum(name: str, enum_type: Any) -> str:
     return name[len(common) :].lower() if name.startswith(common) else name
 
 
-def ik_result(r: Any, **top: str | None) -> IkResult:
-    """An ``InverseKinematicsResult``."""
+def branch(m: Any, present: bool) -> IkBranch | None:
+    """An ``IkBranch`` message (``None`` when absent)."""
+    return IkBranch(m.shoulder, m.elbow, m.wrist) if present else None
+
+
+def singularities(values: Any) -> tuple[Any, ...]:
+    """Repeated ``Singularity`` as REST names (``shoulder``, ``wrist``)."""
+    return tuple(enum_text(pb.Singularity, v, "") for v in values)
+
+
+def ik_solution(m: Any) -> IkSolution:
+    """An ``IkSolution``."""
+    return IkSolution(
+        joints=_f(m.joints),
+        branch=branch(m.branch, m.HasField("branch")),
+        singular=singularities(m.singular),
+        distance=m.distance,
+        position_error=m.position_error,
+        orientation_error=m.orientation_error,
+    )
+
+
+def ik_result(r: Any, *, all_solutions: bool = False, **top: str | None) -> IkResult:
+    """An ``InverseKinematicsResult``. ``solutions`` is repeated (absent and
+    empty look the same): an answer to ``solutions="all"`` is told by its
+    ``truncated`` (always set then) or ``all_solutions``, and then an empty
+    list is "none fits", as REST's ``[]``."""
+    joints = _f(r.joints)
+    every = all_solutions or r.HasField("truncated") or len(r.solutions) > 0
+    details = [ik_solution(x) for x in r.solutions] if every else None
+    solutions = None
+    if details is not None:
+        solutions = np.asarray([d.joints for d in details], dtype=np.float64).reshape(len(details), joints.shape[0])
+    solver = enum_text(pb.IkSolver, r.solver, "")
     return IkResult(
-        joints=_f(r.joints),
+        joints=joints,
         converged=r.converged,
         position_error=r.position_error,
         orientation_error=r.orientation_error if r.HasField("orientation_error") else None,
@@ -217,7 +256,33 @@ def ik_result(r: Any, **top: str | None) -> IkResult:
         robot=top.get("robot"),
         length_unit=top.get("length_unit"),
         angle_unit=top.get("angle_unit"),
+        solver=solver if solver in ("analytic", "numeric") else None,  # type: ignore[arg-type]
+        branch=branch(r.branch, r.HasField("branch")),
+        singular=singularities(r.singular),
+        solutions=solutions,
+        solution_details=details,
+        truncated=r.truncated if r.HasField("truncated") else None,
         extra=extras(r, _IK_KNOWN),
+    )
+
+
+def ik_path(r: Any, robot: str, length_unit: str, angle_unit: str) -> IkPath:
+    """An ``InverseKinematicsPathResponse`` (unary or stream)."""
+    points = [list(p.joints) for p in r.points]
+    dof = len(points[0]) if points else 0
+    stop = None
+    if r.HasField("stop"):
+        s = r.stop
+        reason: Any = enum_text(pb.PathStopReason, s.reason, "")
+        stop = PathStop(s.step, s.waypoint, reason, s.detail)
+    return IkPath(
+        robot=robot,
+        length_unit=length_unit,
+        angle_unit=angle_unit,
+        points=_f(points).reshape(len(points), dof),
+        fraction=r.fraction,
+        waypoints_reached=r.waypoints_reached,
+        stop=stop,
     )
 
 

@@ -9,7 +9,7 @@ errors, not on gRPC.
 from __future__ import annotations
 
 import os
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 from urllib.parse import quote
 
 import httpx
@@ -19,12 +19,14 @@ from . import errors
 from ._calls import (
     RestCall,
     configurations,
+    ik_choices,
     joint_vector,
     load_model,
     load_urdf,
     pad_rows,
     target_json,
     targets_json,
+    waypoints_json,
 )
 from .types import (
     JSON,
@@ -35,10 +37,16 @@ from .types import (
     FkResult,
     Frame,
     IkBatch,
+    IkBranch,
+    IkPath,
     IkResult,
+    IkSolution,
+    IkSolutions,
+    IkSolver,
     Jacobian,
     JacobianBatch,
     LinkTransforms,
+    PathStop,
     Pose,
     PoseFormat,
     Registered,
@@ -50,7 +58,10 @@ from .types import (
 
 URDF_IMPORT = "application/vnd.kinserve.urdf-import+json"
 
-_IK_FIELDS = {"joints", "converged", "position_error", "orientation_error", "iterations", "pose"}
+_IK_FIELDS = {
+    "joints", "converged", "position_error", "orientation_error", "iterations", "pose",
+    "solver", "branch", "singular", "solutions", "truncated",
+}
 _IK_TOP = {"robot", "length_unit", "angle_unit"}
 
 
@@ -73,12 +84,41 @@ def parse_pose(p: Mapping[str, Any]) -> Pose:
     )
 
 
+def parse_branch(b: Mapping[str, Any] | None) -> IkBranch | None:
+    """A REST ``IkBranch`` (``None`` stays ``None``)."""
+    if b is None:
+        return None
+    return IkBranch(int(b["shoulder"]), int(b["elbow"]), int(b["wrist"]))
+
+
+def parse_solution(s: Mapping[str, Any]) -> IkSolution:
+    """A REST ``IkSolutionItem``."""
+    return IkSolution(
+        joints=_f(s["joints"]),
+        branch=parse_branch(s.get("branch")),
+        singular=tuple(s.get("singular") or ()),
+        distance=float(s["distance"]),
+        position_error=float(s["position_error"]),
+        orientation_error=float(s["orientation_error"]),
+    )
+
+
+def solutions_array(details: list[IkSolution], dof: int) -> Array:
+    """(K, dof) joints of ``details`` (K may be 0)."""
+    return np.asarray([d.joints for d in details], dtype=np.float64).reshape(len(details), dof)
+
+
 def parse_ik_item(item: Mapping[str, Any], top: Mapping[str, Any] | None = None) -> IkResult:
-    """A REST IK answer (``IkItem``, optionally flattened with the top fields)."""
+    """A REST IK answer (``IkItem``, optionally flattened with the top fields;
+    a WebSocket IK reply too)."""
     top = top or {}
     orient = item.get("orientation_error")
+    joints = _f(item["joints"])
+    raw = item.get("solutions")
+    details = None if raw is None else [parse_solution(x) for x in raw]
+    truncated = item.get("truncated")
     return IkResult(
-        joints=_f(item["joints"]),
+        joints=joints,
         converged=bool(item["converged"]),
         position_error=float(item["position_error"]),
         orientation_error=None if orient is None else float(orient),
@@ -87,7 +127,32 @@ def parse_ik_item(item: Mapping[str, Any], top: Mapping[str, Any] | None = None)
         robot=top.get("robot"),
         length_unit=top.get("length_unit"),
         angle_unit=top.get("angle_unit"),
+        solver=item.get("solver"),
+        branch=parse_branch(item.get("branch")),
+        singular=tuple(item.get("singular") or ()),
+        solutions=None if details is None else solutions_array(details, joints.shape[0]),
+        solution_details=details,
+        truncated=None if truncated is None else bool(truncated),
         extra={k: v for k, v in item.items() if k not in _IK_FIELDS | _IK_TOP},
+    )
+
+
+def parse_path(b: Mapping[str, Any], top: Mapping[str, Any] | None = None) -> IkPath:
+    """A REST ``IkPathOutput`` (or the path part of a WebSocket reply)."""
+    top = top if top is not None else b
+    points = b["points"]
+    dof = len(points[0]) if points else 0
+    stop = b.get("stop")
+    return IkPath(
+        robot=str(top.get("robot", "")),
+        length_unit=str(top.get("length_unit", "")),
+        angle_unit=str(top.get("angle_unit", "")),
+        points=_f(points).reshape(len(points), dof),
+        fraction=float(b["fraction"]),
+        waypoints_reached=int(b["waypoints_reached"]),
+        stop=None
+        if stop is None
+        else PathStop(int(stop["step"]), int(stop["waypoint"]), stop["reason"], str(stop["detail"])),
     )
 
 
@@ -149,7 +214,17 @@ class RestOps:
 
         def parse(r: httpx.Response) -> RobotPage:
             body = r.json()
-            robots = [RobotSummary(**{k: s[k] for k in RobotSummary.__annotations__}) for s in body["robots"]]
+            robots = [
+                RobotSummary(
+                    name=s["name"],
+                    dof=int(s["dof"]),
+                    convention=s["convention"],
+                    length_unit=s["length_unit"],
+                    source=s["source"],
+                    ik_class=s.get("ik_class"),
+                )
+                for s in body["robots"]
+            ]
             return RobotPage(robots, body.get("next_page_token"))
 
         return RestCall("GET", "/v1/robots", parse, params=params)
@@ -348,8 +423,12 @@ class RestOps:
         tolerance: float | None = None,
         max_iterations: int | None = None,
         restarts: int | None = None,
+        solver: IkSolver | None = None,
+        solutions: IkSolutions | None = None,
+        max_solutions: int | None = None,
         **options: JSON,
     ) -> RestCall[IkResult]:
+        options = {**ik_choices(solver, solutions, max_solutions), **options}
         body = ik_body(seed, angle_unit, position_only, tolerance, max_iterations, restarts, options)
         body["target"] = target_json(target)
 
@@ -371,8 +450,12 @@ class RestOps:
         tolerance: float | None = None,
         max_iterations: int | None = None,
         restarts: int | None = None,
+        solver: IkSolver | None = None,
+        solutions: IkSolutions | None = None,
+        max_solutions: int | None = None,
         **options: JSON,
     ) -> RestCall[IkBatch]:
+        options = {**ik_choices(solver, solutions, max_solutions), **options}
         body = ik_body(seed, angle_unit, position_only, tolerance, max_iterations, restarts, options)
         body["targets"] = targets_json(targets)
 
@@ -382,6 +465,37 @@ class RestOps:
             return ik_batch(b["robot"], b["length_unit"], b["angle_unit"], results)
 
         return RestCall("POST", _robot_path(robot, "/ik/batch"), parse, json=body)
+
+    def ik_path(
+        self,
+        /,
+        robot: str,
+        start: ArrayLike,
+        waypoints: ArrayLike | Sequence[ArrayLike | Mapping[str, Any]],
+        *,
+        angle_unit: AngleUnit = "rad",
+        position_only: bool = False,
+        max_step_length: float | None = None,
+        max_step_angle: float | None = None,
+        max_joint_step: float | None = None,
+        tolerance: float | None = None,
+        solver: IkSolver | None = None,
+        max_iterations: int | None = None,
+        restarts: int | None = None,
+    ) -> RestCall[IkPath]:
+        body = path_body(
+            start, waypoints, angle_unit, position_only,
+            {
+                "max_step_length": max_step_length,
+                "max_step_angle": max_step_angle,
+                "max_joint_step": max_joint_step,
+                "tolerance": tolerance,
+                "solver": solver,
+                "max_iterations": max_iterations,
+                "restarts": restarts,
+            },
+        )
+        return RestCall("POST", _robot_path(robot, "/ik/path"), lambda r: parse_path(r.json()), json=body)
 
     def link_transforms(
         self,
@@ -425,6 +539,24 @@ def ik_body(
         if value is not None:
             body[key] = value
     body.update(options)
+    return body
+
+
+def path_body(
+    start: ArrayLike,
+    waypoints: ArrayLike | Sequence[ArrayLike | Mapping[str, Any]],
+    angle_unit: AngleUnit,
+    position_only: bool,
+    optional: Mapping[str, JSON],
+) -> dict[str, JSON]:
+    """The REST body of a Cartesian path (the optional fields that were given)."""
+    body: dict[str, JSON] = {
+        "start": joint_vector(start),
+        "waypoints": waypoints_json(waypoints),
+        "angle_unit": angle_unit,
+        "position_only": position_only,
+    }
+    body.update({k: v for k, v in optional.items() if v is not None})
     return body
 
 
@@ -473,6 +605,7 @@ def jacobian_item(b: Mapping[str, Any]) -> Jacobian:
 def ik_batch(robot: str, length_unit: str, angle_unit: str, results: list[IkResult]) -> IkBatch:
     """The arrays of N IK answers."""
     n = len(results)
+    all_ = n > 0 and all(r.solutions is not None for r in results)
     return IkBatch(
         robot=robot,
         length_unit=length_unit,
@@ -486,4 +619,8 @@ def ik_batch(robot: str, length_unit: str, angle_unit: str, results: list[IkResu
         iterations=np.asarray([r.iterations for r in results], dtype=np.int64),
         poses=np.asarray([r.pose.matrix for r in results], dtype=np.float64).reshape(n, 4, 4),
         results=results,
+        solver=[r.solver for r in results],
+        singular=np.asarray([bool(r.singular) for r in results], dtype=np.bool_),
+        solutions=None if not all_ else [r.solutions for r in results if r.solutions is not None],
+        truncated=None if not all_ else np.asarray([bool(r.truncated) for r in results], dtype=np.bool_),
     )

@@ -214,6 +214,7 @@ class Client(_Base):
     jacobian_batch = _op_sync(RestOps.jacobian_batch)
     ik = _op_sync(RestOps.ik)
     ik_batch = _op_sync(RestOps.ik_batch)
+    ik_path = _op_sync(RestOps.ik_path)
     link_transforms = _op_sync(RestOps.link_transforms)
 
 
@@ -348,4 +349,5 @@ class AsyncClient(_Base):
     jacobian_batch = _op_async(RestOps.jacobian_batch)
     ik = _op_async(RestOps.ik)
     ik_batch = _op_async(RestOps.ik_batch)
+    ik_path = _op_async(RestOps.ik_path)
     link_transforms = _op_async(RestOps.link_transforms)

@@ -48,10 +48,12 @@ class KinserveError(Exception):
         fields: field path -> message (``{"joints[1]": "outside the limits …"}``),
             from the problem's ``errors`` or gRPC's ``google.rpc.BadRequest``.
         detail: the explanation (the problem's ``detail``, the gRPC message).
-        type: the problem type URI (``urn:kinserve:problem:invalid-input``). Over
-            gRPC it is known when the code has one kind only, or the status
-            carries ``google.rpc.ErrorInfo`` (``IK_NOT_CONVERGED``); else ``None``.
-        status: the HTTP status (REST's, or the one REST gives for that kind).
+        type: the problem type URI (``urn:kinserve:problem:invalid-input``), the
+            same on both transports: over gRPC from the ``google.rpc.ErrorInfo``
+            every error status carries (domain ``kinserve``, reason
+            ``INVALID_INPUT``); ``None`` only for a status without it (a
+            transport failure, or an older server whose code has several kinds).
+        status: the HTTP status (REST's; over gRPC the one REST gives that kind).
         best_attempt: with ``ik-not-converged``, the best attempt as an
             :class:`~kinserve_client.types.IkResult`.
     """

@@ -2,7 +2,7 @@
 WebSocket (REST) or the gRPC ``StreamForwardKinematics`` call, with a
 "latest wins" mode that keeps at most one request in flight.
 
-A request is a dict in the WebSocket schema (``id``, ``joints`` or ``ik``,
+A request is a dict in the WebSocket schema (``id``, ``joints``, ``ik`` or ``ik_path``,
 ``angle_unit``, ``frames``, ``pose_format``, ``jacobian``, ``frame``,
 ``link_transforms``, ``check_limits``); the gRPC wire converts it. Owns the
 stream bookkeeping; depends on the parsers of ``_rest`` and ``_pbconv``.
@@ -13,21 +13,22 @@ from __future__ import annotations
 import asyncio
 import json
 from dataclasses import dataclass
-from typing import Any, Awaitable, Callable, Mapping, Protocol
+from typing import Any, Awaitable, Callable, Mapping, Protocol, Sequence
 from urllib.parse import quote
 
 import numpy as np
 
 from . import errors
 from ._calls import joint_vector, target_json
-from ._rest import error_from_problem, fk_result, jacobian_item, parse_ik_item
-from .types import JSON, ArrayLike, FkResult, IkResult, Jacobian, PoseFormat, Transport
+from ._rest import error_from_problem, fk_result, jacobian_item, parse_ik_item, parse_path, path_body
+from .types import JSON, ArrayLike, FkResult, IkPath, IkResult, Jacobian, PoseFormat, Transport
 
 
 @dataclass(frozen=True)
 class StreamReply:
     """One reply of a stream: ``fk`` (and ``jacobian``, ``link_transforms``
-    when asked for) for an FK request, ``ik`` for an IK request, or ``error``."""
+    when asked for) for an FK request, ``ik`` for an IK request, ``ik_path``
+    for a Cartesian path, or ``error``."""
 
     id: int
     fk: FkResult | None = None
@@ -35,6 +36,7 @@ class StreamReply:
     ik: IkResult | None = None
     link_transforms: Any = None
     error: errors.KinserveError | None = None
+    ik_path: IkPath | None = None
 
     def unwrap(self) -> StreamReply:
         """The reply itself, or its error raised."""
@@ -123,6 +125,22 @@ class Stream:
         body.setdefault("angle_unit", self._defaults["angle_unit"])
         return await self._submit({"ik": body})
 
+    async def send_ik_path(
+        self,
+        start: ArrayLike,
+        waypoints: ArrayLike | Sequence[ArrayLike | Mapping[str, Any]],
+        *,
+        position_only: bool = False,
+        **path: JSON,
+    ) -> int:
+        """Queues a Cartesian path: ``start``, ``waypoints`` and the options
+        (``max_step_length``, ``max_joint_step``, ``solver``, …) as for
+        :meth:`Client.ik_path`; the reply's ``ik_path`` is an
+        :class:`~kinserve_client.types.IkPath`. Returns its id."""
+        angle_unit = path.pop("angle_unit", self._defaults["angle_unit"])
+        body = path_body(start, waypoints, angle_unit, position_only, path)
+        return await self._submit({"ik_path": body})
+
     async def _submit(self, request: dict[str, JSON]) -> int:
         request["id"] = self._next_id
         self._next_id += 1
@@ -175,6 +193,9 @@ def _reply_from_json(m: Mapping[str, Any], requests: Mapping[int, Mapping[str, J
         problem = m["error"]
         return StreamReply(rid, error=error_from_problem(int(problem.get("status", 0)), problem, ""))
     request = requests.get(rid, {})
+    if "ik_path" in request:
+        top = {"robot": "", "length_unit": m.get("length_unit", ""), "angle_unit": request["ik_path"].get("angle_unit", "rad")}
+        return StreamReply(rid, ik_path=parse_path(m, top))
     if "ik" in request:
         return StreamReply(rid, ik=parse_ik_item(m))
     fmt: PoseFormat = request.get("pose_format", "full")

@@ -29,6 +29,23 @@ Frame = Literal["base", "tool"]
 Transport = Literal["rest", "grpc"]
 """How a client talks to the server."""
 
+IkSolver = Literal["auto", "analytic", "numeric"]
+"""Which IK solver a request asks for: ``auto`` (the closed form where the arm
+has one and the target an orientation, else numeric), ``analytic`` (the closed
+form only), ``numeric`` (damped least squares)."""
+
+IkSolverUsed = Literal["analytic", "numeric"]
+"""The IK solver that produced an answer."""
+
+IkSolutions = Literal["best", "all"]
+"""One IK answer (``best``) or every closed-form solution in the limits (``all``)."""
+
+Singularity = Literal["shoulder", "wrist"]
+"""A singularity a closed-form solution stands at."""
+
+PathStopReason = Literal["unreachable", "joint_limits", "joint_jump", "singularity", "time_limit"]
+"""Why a Cartesian path stopped before its end."""
+
 JSON = Any
 """A JSON value (dicts, lists, str, float, bool, None)."""
 
@@ -54,13 +71,20 @@ class Pose:
 
 @dataclass(frozen=True)
 class RobotSummary:
-    """A line of the robot list."""
+    """A line of the robot list.
+
+    Attributes:
+        ik_class: the closed-form IK class (``spherical_wrist_parallel_23``, …)
+            when ``solver="analytic"`` and ``solutions="all"`` work; ``None``
+            when only the numeric solver applies.
+    """
 
     name: str
     dof: int
     convention: str
     length_unit: str
     source: str
+    ik_class: str | None = None
 
 
 @dataclass(frozen=True)
@@ -164,6 +188,37 @@ class JacobianBatch:
 
 
 @dataclass(frozen=True)
+class IkBranch:
+    """Which root of each subproblem a closed-form solution took (0 or 1):
+    ``shoulder`` joint 1 (lefty / righty), ``elbow`` joint 3, ``wrist`` joints 4–5."""
+
+    shoulder: int
+    elbow: int
+    wrist: int
+
+
+@dataclass(frozen=True)
+class IkSolution:
+    """One solution of ``solutions="all"``.
+
+    Attributes:
+        joints: (dof,) in the request's angle unit, within the joint limits.
+        branch: its closed-form branch.
+        singular: singularities it stands at (empty almost always).
+        distance: limits-aware distance to the seed (or the middle of the limits), rad.
+        position_error: length unit.
+        orientation_error: rad.
+    """
+
+    joints: Array
+    branch: IkBranch | None
+    singular: tuple[Singularity, ...]
+    distance: float
+    position_error: float
+    orientation_error: float
+
+
+@dataclass(frozen=True)
 class IkResult:
     """One inverse-kinematics answer.
 
@@ -174,8 +229,18 @@ class IkResult:
         position_error: distance from the target position, length unit.
         orientation_error: angle from the target orientation, rad (``None``
             when the target had none).
-        iterations: solver iterations over all attempts.
+        iterations: solver iterations over all attempts (0 from the closed form).
         pose: the tool pose at ``joints``.
+        solver: the solver that produced ``joints`` (``analytic`` or ``numeric``).
+        branch: the closed-form branch of ``joints`` (``None`` from the numeric solver).
+        singular: singularities ``joints`` stands at (closed form only).
+        solutions: with ``solutions="all"``: (K, dof) joints of every solution
+            in the limits, nearest the seed first (``joints`` is the first);
+            ``None`` otherwise.
+        solution_details: with ``solutions="all"``: each solution's branch,
+            singularities, distance and errors, in the order of ``solutions``.
+        truncated: with ``solutions="all"``: more solutions fit the limits than
+            ``max_solutions``; ``None`` otherwise.
         extra: answer fields this client version has no attribute for (for
             example fields added by newer servers), as JSON.
     """
@@ -189,6 +254,12 @@ class IkResult:
     robot: str | None = None
     length_unit: str | None = None
     angle_unit: str | None = None
+    solver: IkSolverUsed | None = None
+    branch: IkBranch | None = None
+    singular: tuple[Singularity, ...] = ()
+    solutions: Array | None = None
+    solution_details: list[IkSolution] | None = None
+    truncated: bool | None = None
     extra: dict[str, JSON] = field(default_factory=dict)
 
 
@@ -203,6 +274,12 @@ class IkBatch:
         orientation_error: (N,), ``nan`` where the target had no orientation.
         iterations: (N,) int.
         poses: (N, 4, 4).
+        solver: (N,) the solver of each answer.
+        singular: (N,) bool: the answer stands at a singularity.
+        solutions: with ``solutions="all"``: per target a (K_i, dof) array
+            (K_i may differ, and be 0); ``None`` otherwise.
+        truncated: with ``solutions="all"``: (N,) bool; ``None`` otherwise.
+        results: each answer as an :class:`IkResult` (branches, details).
     """
 
     robot: str
@@ -215,6 +292,54 @@ class IkBatch:
     iterations: npt.NDArray[np.int64]
     poses: Array
     results: list[IkResult]
+    solver: list[IkSolverUsed | None] = field(default_factory=list)
+    singular: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+    solutions: list[Array] | None = None
+    truncated: npt.NDArray[np.bool_] | None = None
+
+
+@dataclass(frozen=True)
+class PathStop:
+    """Where and why a Cartesian path stopped.
+
+    Attributes:
+        step: the 1-based step that was not taken (step 0 is the start).
+        waypoint: the 0-based waypoint that step heads for.
+        reason: why.
+        detail: what happened, in words.
+    """
+
+    step: int
+    waypoint: int
+    reason: PathStopReason
+    detail: str
+
+
+@dataclass(frozen=True)
+class IkPath:
+    """A Cartesian path (:meth:`Client.ik_path`).
+
+    Attributes:
+        points: (M, dof) joints of every step, the start first, in the
+            request's angle unit.
+        fraction: steps taken / steps planned (1.0 when complete).
+        waypoints_reached: waypoints fully reached.
+        stop: ``None`` when complete; else where and why it stopped (still an
+            answer, not an error).
+    """
+
+    robot: str
+    length_unit: str
+    angle_unit: str
+    points: Array
+    fraction: float
+    waypoints_reached: int
+    stop: PathStop | None
+
+    @property
+    def complete(self) -> bool:
+        """The path reached its last waypoint."""
+        return self.stop is None
 
 
 @dataclass(frozen=True)
