@@ -18,9 +18,10 @@
 //! that the step would push further are taken out of the step), which
 //! reaches other solutions than plain clamping near the limits. A phase is
 //! abandoned as soon as it stalls: λ too large to move, several kept steps in
-//! a row that each remove less than a tenth of the error, or less than ¾ of
-//! the error removed over the last six iterations while still far from the
-//! target (the progress test that keeps failing attempts short). Then the
+//! a row that each remove less than a tenth of the squared error, or the
+//! squared error down by less than ¾ over the last six iterations while
+//! still farther than 1000 × the tolerance from the target (the progress test
+//! that keeps failing attempts short). Then the
 //! solver restarts from a pseudo-random in-limit configuration drawn from a
 //! fixed seed, so every answer is deterministic (unless the time cap cuts a
 //! solve short). Every answer, converged or not, is within the joint limits.
@@ -94,6 +95,29 @@ enum Limits {
 
 /// A preferred configuration for a redundant arm (the null-space objective
 /// of [`IkOptions::posture`]).
+///
+/// ```
+/// use kinserve_kinematics::ik::{IkOptions, IkSolver, Posture};
+/// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+///
+/// // A planar 3R arm reaching a point: one joint to spare.
+/// let row = |a| DhRow { kind: JointKind::Revolute, a, alpha: 0.0, d: 0.0, theta: 0.0 };
+/// let rows = [row(1.0), row(1.0), row(1.0)];
+/// let chain = Chain::new(Convention::Standard, &rows, Transform::IDENTITY, None);
+/// let solver = IkSolver::new(&chain, &[]);
+/// let target = chain.forward(&[0.3, 0.4, 0.5], 1.0);
+/// let preferred = vec![0.0, 0.0, 1.5];
+/// let opts = |weight| IkOptions {
+///     position_only: true,
+///     posture: Some(Posture { joints: preferred.clone(), weights: vec![weight; 3] }),
+///     ..IkOptions::default()
+/// };
+/// let plain = solver.solve(&target, None, &opts(0.0)); // same start, no pull
+/// let pulled = solver.solve(&target, None, &opts(1.0));
+/// assert!(plain.converged && pulled.converged);
+/// let dist = |q: &[f64]| q.iter().zip(&preferred).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+/// assert!(dist(&pulled.q) < dist(&plain.q));
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Posture {
     /// Preferred joint values, one per joint (rad / length unit; missing
@@ -312,11 +336,12 @@ impl<'a> IkSolver<'a> {
     }
 
     /// Solves for `target` (world frame), starting from `seed` if given
-    /// (clamped into the limits) and otherwise from the middle of each
-    /// joint's range (0 where unlimited), then restarting as
-    /// [`IkOptions::restarts`] allows. Returns the first converged attempt, or
-    /// the attempt with the lowest error. Unlimited revolute joints are
-    /// answered within π of the seed (of 0 without one); limited joints whose
+    /// (clamped into the limits), else from the posture if one is set, else
+    /// from the middle of each joint's range (0 where unlimited), then
+    /// restarting as [`IkOptions::restarts`] allows. Returns the first
+    /// converged attempt (moved towards the posture if one is set), or the
+    /// attempt with the lowest error. Unlimited revolute joints are answered
+    /// within π of that start (seed, posture, or 0); limited joints whose
     /// range spans more than a turn, as close to it as their limits allow.
     pub fn solve(&self, target: &Transform, seed: Option<&[f64]>, opts: &IkOptions) -> IkSolution {
         static NEVER: AtomicBool = AtomicBool::new(false);
