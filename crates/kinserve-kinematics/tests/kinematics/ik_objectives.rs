@@ -2,8 +2,9 @@
 //! `IkOptions::axis_tolerances`): the null-space posture of redundant arms
 //! (posture error falls, pose error stays within the tolerance) and per-axis
 //! tolerances in the target frame (a free rotation about the tool's z axis,
-//! position only along x and y, a tilt a SCARA cannot make left free). Every
-//! answer is checked by FK here, independently of the errors it reports.
+//! position only along x and y, a tilt a SCARA cannot make left free), and
+//! determinism with both. Every answer is checked by FK here, independently
+//! of the errors it reports.
 
 use kinserve_kinematics::Transform;
 use kinserve_kinematics::ik::{IkOptions, IkSolver, Posture, rotation_error};
@@ -217,5 +218,26 @@ fn a_tilt_a_scara_cannot_make_is_reached_once_left_free() {
         assert!(dp <= 3f64.sqrt() * tol, "target {k}: {dp:e}");
         // What is left of the rotation is the tilt about x (0.3 rad).
         assert!((dr - 0.3).abs() <= 1e-8, "target {k}: {dr}");
+    }
+}
+
+#[test]
+fn answers_with_a_posture_and_free_axes_are_deterministic() {
+    let robot = robot("panda");
+    let solver = IkSolver::new(robot.chain(), &limits(&robot));
+    let mut rng = Rng(235);
+    let target = robot.chain().forward(&random_config(&robot, &mut rng), 1.0);
+    let opts = IkOptions {
+        posture: Some(Posture {
+            joints: random_config(&robot, &mut rng),
+            weights: vec![0.5; 7],
+        }),
+        axis_tolerances: Some([1e-9, 1e-9, 1e-9, 1e-9, 1e-9, f64::INFINITY]),
+        ..IkOptions::default()
+    };
+    let first = solver.solve(&target, None, &opts);
+    assert!(first.converged, "{first:?}");
+    for _ in 0..3 {
+        assert_eq!(solver.solve(&target, None, &opts), first);
     }
 }
