@@ -22,5 +22,6 @@ mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod secure_defaults;
+mod traces;
 mod urdf_import;
 mod ws;

@@ -127,6 +127,7 @@ pub async fn serve(
         ],
     );
     tonic::transport::Server::builder()
+        .layer(crate::telemetry::spans::GrpcTraceLayer)
         .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,

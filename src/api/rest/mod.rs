@@ -50,6 +50,7 @@ pub use problem::{ApiError, Problem, ProblemField};
 use crate::compute::{ClientId, FairBudget, share_of};
 use crate::error::Error;
 use crate::service::Service;
+use crate::telemetry::w3c::TraceId;
 
 /// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
@@ -437,6 +438,7 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             .unwrap_or("")
             .to_string()
     });
+    let trace_id = req.extensions().get::<TraceId>().copied();
     let resp = next.run(req).await;
     if let Some(request_id) = request_id {
         tracing::info!(
@@ -447,6 +449,7 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             status = resp.status().as_u16(),
             duration_ms = start.elapsed().as_secs_f64() * 1e3,
             request_id = %request_id,
+            trace_id = trace_id.map(tracing::field::display),
             "request"
         );
     }
@@ -502,6 +505,8 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::IF_MATCH,
             header::IF_NONE_MATCH,
             header::HeaderName::from_static("x-request-id"),
+            crate::telemetry::spans::TRACEPARENT,
+            crate::telemetry::spans::TRACESTATE,
         ])
         .expose_headers([
             header::LOCATION,
@@ -509,6 +514,8 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::LAST_MODIFIED,
             header::HeaderName::from_static("x-request-id"),
             header::RETRY_AFTER,
+            crate::telemetry::spans::TRACEPARENT,
+            crate::telemetry::spans::TRACESTATE,
         ]);
     if origins.is_empty() {
         // Any web page may read and compute FK; registry writes (PUT, DELETE,
@@ -580,6 +587,7 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
                 })
                 .on_failure(log_failure),
         )
+        .layer(middleware::from_fn(crate::telemetry::spans::rest_request))
         .layer(PropagateRequestIdLayer::x_request_id())
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
         .layer(cors)
