@@ -405,7 +405,10 @@ impl Service {
         self.check_batch_size(c.len())?;
         let batch = crate::trace_span!("validate")
             .in_scope(|| robot.check_batch(&c.values, &c.lens, &spec.options))?;
-        Ok(crate::trace_span!("compute", kinserve.batch_size = c.len()).in_scope(|| batch.fk()))
+        Ok(
+            crate::trace_span!("compute", kinserve.batch_size = c.len() as i64)
+                .in_scope(|| batch.fk()),
+        )
     }
 }
 
@@ -443,7 +446,8 @@ impl Service {
         self.check_batch_size(c.len())?;
         let batch = crate::trace_span!("validate")
             .in_scope(|| robot.check_batch(&c.values, &c.lens, &spec.options))?;
-        let _compute = crate::trace_span!("compute", kinserve.batch_size = c.len()).entered();
+        let _compute =
+            crate::trace_span!("compute", kinserve.batch_size = c.len() as i64).entered();
         let mut out = Vec::with_capacity(batch.len());
         for (i, q) in batch.vectors().enumerate() {
             if i.is_multiple_of(CANCEL_CHUNK) && cancelled(cancel) {
@@ -504,7 +508,8 @@ impl Service {
             .map_err(|_| self.targets_too_large(spec.targets.len()))?;
         let batch = crate::trace_span!("validate").in_scope(|| robot.check_ik_batch(spec))?;
         let _compute =
-            crate::trace_span!("compute", kinserve.batch_size = spec.targets.len()).entered();
+            crate::trace_span!("compute", kinserve.batch_size = spec.targets.len() as i64)
+                .entered();
         let now = Instant::now();
         let deadline = deadline_after(now, self.limits.ik_batch_time_limit);
         // No target gets more than the whole batch has (so no sum overflows either).

@@ -50,7 +50,9 @@ pub fn record_robot(name: &str) {
 /// Records the batch size (configurations or targets) on the current request span.
 pub fn record_batch_size(n: usize) {
     if exporting() {
-        tracing::Span::current().record("kinserve.batch_size", n as u64);
+        // Integers reach OpenTelemetry as integers only as i64.
+        tracing::Span::current()
+            .record("kinserve.batch_size", i64::try_from(n).unwrap_or(i64::MAX));
     }
 }
 
@@ -152,7 +154,7 @@ pub async fn rest_request(mut req: Request, next: Next) -> Response {
     });
     let mut resp = next.run(req).instrument(span.clone()).await;
     let status = resp.status().as_u16();
-    span.record("http.response.status_code", status);
+    span.record("http.response.status_code", i64::from(status));
     if status >= 500 {
         span.record("otel.status_code", "error");
     }

@@ -232,10 +232,19 @@ async fn grpc_fk(server: &Server, caller: &Caller) -> tonic::metadata::MetadataM
         )
         .await
         .unwrap();
-    let mut req = tonic::Request::new(fk_request("puma560", &[JOINT, 0.0, 0.0, 0.0, 0.0, 0.0], None));
+    let mut req = tonic::Request::new(fk_request(
+        "puma560",
+        &[JOINT, 0.0, 0.0, 0.0, 0.0, 0.0],
+        None,
+    ));
     req.metadata_mut()
         .insert("traceparent", caller.traceparent().parse().unwrap());
-    client.forward_kinematics(req).await.unwrap().metadata().clone()
+    client
+        .forward_kinematics(req)
+        .await
+        .unwrap()
+        .metadata()
+        .clone()
 }
 
 fn exporting_env(endpoint: &str, protocol: &'static str) -> Vec<(&'static str, String)> {
@@ -279,12 +288,22 @@ async fn rest_and_grpc_spans_reach_the_collector_as_children_of_the_callers_span
 
     // REST: the server span is the caller's child; its id is answered.
     let resp = rest_fk(&server, &REST_CALLER).await;
-    let header = |name: &str| resp.headers().get(name).map(|v| v.to_str().unwrap().to_string());
+    let header = |name: &str| {
+        resp.headers()
+            .get(name)
+            .map(|v| v.to_str().unwrap().to_string())
+    };
     let (trace, server_span) = answered(header("traceparent").as_deref());
     assert_eq!(trace, REST_CALLER.trace);
     assert_ne!(server_span, REST_CALLER.span);
     assert_eq!(header("tracestate").as_deref(), Some("vendor=opaque"));
-    let want = ["POST /v1/robots/{name}/fk", "read body", "validate", "compute", "encode"];
+    let want = [
+        "POST /v1/robots/{name}/fk",
+        "read body",
+        "validate",
+        "compute",
+        "encode",
+    ];
     let spans = received
         .wait_for(&unhex(REST_CALLER.trace), |s| {
             want.iter().all(|w| s.iter().any(|x| x.name == *w))
@@ -298,15 +317,17 @@ async fn rest_and_grpc_spans_reach_the_collector_as_children_of_the_callers_span
         attr(root, "kinserve.robot"),
         Some(&AnyValue::StringValue("puma560".into()))
     );
-    assert_eq!(attr(root, "http.response.status_code"), Some(&AnyValue::IntValue(200)));
+    assert_eq!(
+        attr(root, "http.response.status_code"),
+        Some(&AnyValue::IntValue(200))
+    );
     for inner in &want[1..] {
         assert_eq!(named(&spans, inner).parent_span_id, root.span_id, "{inner}");
     }
 
     // gRPC: the same from the call's metadata.
     let metadata = grpc_fk(&server, &GRPC_CALLER).await;
-    let (trace, server_span) =
-        answered(metadata.get("traceparent").map(|v| v.to_str().unwrap()));
+    let (trace, server_span) = answered(metadata.get("traceparent").map(|v| v.to_str().unwrap()));
     assert_eq!(trace, GRPC_CALLER.trace);
     let spans = received
         .wait_for(&unhex(GRPC_CALLER.trace), |s| s.len() >= 4)
@@ -318,7 +339,10 @@ async fn rest_and_grpc_spans_reach_the_collector_as_children_of_the_callers_span
     assert_eq!(root.parent_span_id, unhex(GRPC_CALLER.span));
     assert_eq!(root.span_id, unhex(&server_span));
     assert_eq!(root.kind, 2);
-    assert_eq!(attr(root, "rpc.system"), Some(&AnyValue::StringValue("grpc".into())));
+    assert_eq!(
+        attr(root, "rpc.system"),
+        Some(&AnyValue::StringValue("grpc".into()))
+    );
     assert_eq!(
         attr(root, "kinserve.robot"),
         Some(&AnyValue::StringValue("puma560".into()))
@@ -367,7 +391,10 @@ async fn batches_carry_their_span_onto_the_compute_pool_and_store_writes_are_spa
         .await;
     let root = named(&spans, "POST /v1/robots/{name}/fk/batch");
     assert_eq!(root.parent_span_id, unhex(BATCH_CALLER.span));
-    assert_eq!(attr(root, "kinserve.batch_size"), Some(&AnyValue::IntValue(3)));
+    assert_eq!(
+        attr(root, "kinserve.batch_size"),
+        Some(&AnyValue::IntValue(3))
+    );
     let pool = named(&spans, "compute pool");
     assert_eq!(pool.parent_span_id, root.span_id);
     // The work on the blocking thread is the pool span's child.
@@ -383,12 +410,17 @@ async fn batches_carry_their_span_onto_the_compute_pool_and_store_writes_are_spa
         .unwrap();
     assert_eq!(put.status(), 201);
     let spans = received
-        .wait_for(&unhex(STORE_CALLER.trace), |s| s.iter().any(|x| x.name == "store write"))
+        .wait_for(&unhex(STORE_CALLER.trace), |s| {
+            s.iter().any(|x| x.name == "store write")
+        })
         .await;
     let root = named(&spans, "PUT /v1/robots/{name}");
     let write = named(&spans, "store write");
     assert_eq!(write.parent_span_id, root.span_id);
-    assert_eq!(attr(write, "operation"), Some(&AnyValue::StringValue("put".into())));
+    assert_eq!(
+        attr(write, "operation"),
+        Some(&AnyValue::StringValue("put".into()))
+    );
     assert_eq!(
         attr(root, "kinserve.robot"),
         Some(&AnyValue::StringValue("traced".into()))
@@ -435,7 +467,11 @@ async fn without_an_otlp_endpoint_nothing_is_exported_and_no_exporter_runs() {
     let metadata = grpc_fk(&server, &GRPC_CALLER).await;
     assert!(metadata.get("traceparent").is_none());
     tokio::time::sleep(Duration::from_millis(1500)).await;
-    assert_eq!(received.exports(), 0, "nothing is sent without --otlp-endpoint");
+    assert_eq!(
+        received.exports(),
+        0,
+        "nothing is sent without --otlp-endpoint"
+    );
     assert_eq!(threads_named(server.pid(), EXPORTER_THREAD), 0);
     let stderr = server.stderr();
     assert!(
@@ -455,4 +491,32 @@ async fn without_an_otlp_endpoint_nothing_is_exported_and_no_exporter_runs() {
     };
     assert!(has_trace("http", REST_CALLER.trace), "{stderr}");
     assert!(has_trace("grpc", GRPC_CALLER.trace), "{stderr}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sample_ratio_of_zero_drops_new_traces_but_follows_a_sampled_caller() {
+    let (endpoint, received) = grpc_collector().await;
+    let dir = tempfile::tempdir().unwrap();
+    let mut env = exporting_env(&endpoint, "grpc");
+    env.push(("KINSERVE_TRACE_SAMPLE_RATIO", "0".to_string()));
+    let server = start(dir.path(), &env).await;
+    let client = reqwest::Client::new();
+    // No caller: a new trace, not sampled (flags 00), still answered.
+    let alone = client
+        .post(format!("{}/v1/robots/puma560/fk", server.http))
+        .json(&json!({"joints": [0, 0, 0, 0, 0, 0]}))
+        .send()
+        .await
+        .unwrap();
+    let value = alone.headers()["traceparent"].to_str().unwrap().to_string();
+    assert!(value.ends_with("-00"), "{value}");
+    let (unsampled, _) = answered(Some(&value));
+    // A sampled caller's decision is followed.
+    rest_fk(&server, &REST_CALLER).await;
+    received
+        .wait_for(&unhex(REST_CALLER.trace), |s| {
+            s.iter().any(|x| x.name == "POST /v1/robots/{name}/fk")
+        })
+        .await;
+    assert!(received.spans_of(&unhex(&unsampled)).is_empty());
 }
