@@ -334,7 +334,7 @@ async fn rest_and_grpc_spans_reach_the_collector_as_children_of_the_callers_span
         .await;
     let root = spans
         .iter()
-        .find(|s| s.name.ends_with("KinematicsService/ForwardKinematics"))
+        .find(|s| s.name == "kinematics.v1.KinematicsService/ForwardKinematics")
         .unwrap_or_else(|| panic!("no gRPC server span in {:?}", names(&spans)));
     assert_eq!(root.parent_span_id, unhex(GRPC_CALLER.span));
     assert_eq!(root.span_id, unhex(&server_span));
