@@ -13,12 +13,13 @@ use crate::api::pose::{FkOutput, Pose};
 use crate::api::rest::LinkTransformsOutput;
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, ConventionArg, FkArgs, FrameArg, IkArgs,
-    ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
+    ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig, SolverArg,
 };
 use crate::error::Error;
 use crate::model::{
-    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkSpec, IkTargetSpec, ModelLimits,
-    QuaternionSpec, ReferenceFrame, Robot, UrdfImport, import_urdf, load_robot_file, to_urdf,
+    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkSolutionsMode, IkSolverChoice, IkSpec,
+    IkTargetSpec, ModelLimits, QuaternionSpec, ReferenceFrame, Robot, UrdfImport, import_urdf,
+    load_robot_file, to_urdf,
 };
 use crate::registry::builtin;
 
@@ -297,6 +298,17 @@ fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
         restarts: args.restarts,
+        solver: match args.solver {
+            SolverArg::Auto => IkSolverChoice::Auto,
+            SolverArg::Analytic => IkSolverChoice::Analytic,
+            SolverArg::Numeric => IkSolverChoice::Numeric,
+        },
+        solutions: if args.all {
+            IkSolutionsMode::All
+        } else {
+            IkSolutionsMode::Best
+        },
+        max_solutions: args.max_solutions,
     })
 }
 

@@ -159,6 +159,17 @@ pub enum FrameArg {
     Tool,
 }
 
+/// `kinserve ik --solver`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SolverArg {
+    /// The closed form where the arm has one and the target an orientation, else numeric.
+    Auto,
+    /// The closed form only.
+    Analytic,
+    /// Damped least squares with restarts.
+    Numeric,
+}
+
 /// Arguments of `kinserve ik`: a target as `--matrix` or `--position`
 /// (with `--quaternion` unless `--position-only`).
 #[derive(Debug, Args)]
@@ -194,6 +205,15 @@ pub struct IkArgs {
     /// Restarts after a stalled attempt (default 100).
     #[arg(long)]
     pub restarts: Option<u32>,
+    /// Which solver runs: auto (the closed form where the arm has one), analytic, numeric.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+    /// Every solution inside the limits (closed form), nearest the seed first.
+    #[arg(long)]
+    pub all: bool,
+    /// With --all, at most this many solutions (default 64; 1 to 1024).
+    #[arg(long)]
+    pub max_solutions: Option<u32>,
     /// Give up after this long, answering the best attempt (at most 60 s).
     #[arg(long, default_value = "1s", value_parser = parse_ik_time_limit)]
     pub time_limit: Duration,

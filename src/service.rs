@@ -68,6 +68,8 @@ pub struct RobotSummary {
     pub length_unit: LengthUnit,
     /// Built-in or registered.
     pub origin: Origin,
+    /// Closed-form IK class, if any ([`crate::model::Robot::ik_class`]).
+    pub ik_class: Option<&'static str>,
 }
 
 pub use crate::model::Configurations;
@@ -165,6 +167,7 @@ impl Service {
                 convention: e.robot.spec().convention,
                 length_unit: e.robot.length_unit(),
                 origin: e.origin,
+                ik_class: e.robot.ik_class(),
             })
             .collect()
     }

@@ -6,13 +6,16 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::pose::Pose;
-use crate::model::{AngleUnit, IkAnswer, LengthUnit};
+use crate::model::{
+    AngleUnit, IkAnswer, IkBranch, IkSolutionItem, IkSolverUsed, LengthUnit, Singularity,
+};
 
 /// One IK answer: the joints found (or the best attempt) and their errors.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
     "joints": [0.04323781905251354, 1.186399552468544], "converged": true,
     "position_error": 3.261475666182992e-11, "orientation_error": null, "iterations": 7,
+    "solver": "numeric", "branch": null, "singular": [],
     "pose": {"matrix": [[0.3345794784216446, -0.9423675358473999, 0.0, 0.4999999999746447],
             [0.9423675358473999, 0.3345794784216446, 0.0, 0.2999999999794858], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
         "position": [0.4999999999746447, 0.2999999999794858, 0.0],
@@ -32,6 +35,21 @@ pub struct IkItem {
     pub iterations: u32,
     /// Tool pose at `joints`.
     pub pose: Pose,
+    /// The solver that produced `joints` (`analytic`: the arm's closed form,
+    /// 0 iterations).
+    pub solver: IkSolverUsed,
+    /// The closed-form branch of `joints`; `null` from the numeric solver.
+    pub branch: Option<IkBranch>,
+    /// Singularities `joints` stands at (`shoulder`, `wrist`; closed form only).
+    pub singular: Vec<Singularity>,
+    /// With `solutions: "all"` only: every solution inside the limits,
+    /// nearest the seed first (`joints` is the first); empty when none fits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solutions: Option<Vec<IkSolutionItem>>,
+    /// With `solutions: "all"` only: whether more solutions fit the limits
+    /// than `max_solutions`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truncated: Option<bool>,
 }
 
 impl From<&IkAnswer> for IkItem {
@@ -43,6 +61,11 @@ impl From<&IkAnswer> for IkItem {
             orientation_error: a.orientation_error,
             iterations: a.iterations,
             pose: Pose::from(&a.pose),
+            solver: a.solver,
+            branch: a.branch,
+            singular: a.singular.clone(),
+            solutions: a.solutions.clone(),
+            truncated: a.solutions.is_some().then_some(a.truncated),
         }
     }
 }

@@ -5,8 +5,9 @@
 //! [`crate::pb`].
 
 use kinserve_model::{
-    AngleUnit, FieldViolation, IkAnswer, IkBatchSpec, IkSpec, IkTargetSpec, ModelError,
-    QuaternionSpec, Result,
+    AngleUnit, FieldViolation, IkAnswer, IkBatchSpec, IkBranch, IkSolutionItem, IkSolutionsMode,
+    IkSolverChoice, IkSolverUsed, IkSpec, IkTargetSpec, ModelError, QuaternionSpec, Result,
+    Singularity,
 };
 
 use crate::pb;
@@ -66,6 +67,69 @@ fn ik_result_to_pb(a: &IkAnswer) -> pb::InverseKinematicsResult {
         orientation_error: a.orientation_error,
         iterations: a.iterations,
         pose: Some(pose_to_pb(&a.pose)),
+        solver: solver_used_to_pb(a.solver) as i32,
+        branch: a.branch.map(branch_to_pb),
+        singular: singular_to_pb(&a.singular),
+        solutions: a.solutions.iter().flatten().map(solution_to_pb).collect(),
+        truncated: a.solutions.is_some().then_some(a.truncated),
+    }
+}
+
+fn solver_used_to_pb(s: IkSolverUsed) -> pb::IkSolver {
+    match s {
+        IkSolverUsed::Analytic => pb::IkSolver::Analytic,
+        IkSolverUsed::Numeric => pb::IkSolver::Numeric,
+    }
+}
+
+fn branch_to_pb(b: IkBranch) -> pb::IkBranch {
+    pb::IkBranch {
+        shoulder: b.shoulder.into(),
+        elbow: b.elbow.into(),
+        wrist: b.wrist.into(),
+    }
+}
+
+fn singular_to_pb(s: &[Singularity]) -> Vec<i32> {
+    s.iter()
+        .map(|x| match x {
+            Singularity::Shoulder => pb::Singularity::Shoulder as i32,
+            Singularity::Wrist => pb::Singularity::Wrist as i32,
+        })
+        .collect()
+}
+
+fn solution_to_pb(s: &IkSolutionItem) -> pb::IkSolution {
+    pb::IkSolution {
+        joints: s.joints.clone(),
+        branch: s.branch.map(branch_to_pb),
+        singular: singular_to_pb(&s.singular),
+        distance: s.distance,
+        position_error: s.position_error,
+        orientation_error: s.orientation_error,
+    }
+}
+
+fn solver_from_pb(v: i32) -> Result<IkSolverChoice> {
+    match pb::IkSolver::try_from(v) {
+        Ok(pb::IkSolver::Unspecified | pb::IkSolver::Auto) => Ok(IkSolverChoice::Auto),
+        Ok(pb::IkSolver::Analytic) => Ok(IkSolverChoice::Analytic),
+        Ok(pb::IkSolver::Numeric) => Ok(IkSolverChoice::Numeric),
+        Err(_) => Err(ModelError::malformed_field(
+            "solver",
+            "unknown solver: use IK_SOLVER_AUTO, IK_SOLVER_ANALYTIC or IK_SOLVER_NUMERIC",
+        )),
+    }
+}
+
+fn solutions_from_pb(v: i32) -> Result<IkSolutionsMode> {
+    match pb::IkSolutions::try_from(v) {
+        Ok(pb::IkSolutions::Unspecified | pb::IkSolutions::Best) => Ok(IkSolutionsMode::Best),
+        Ok(pb::IkSolutions::All) => Ok(IkSolutionsMode::All),
+        Err(_) => Err(ModelError::malformed_field(
+            "solutions",
+            "unknown solutions: use IK_SOLUTIONS_BEST or IK_SOLUTIONS_ALL",
+        )),
     }
 }
 
@@ -122,6 +186,9 @@ pub fn ik_spec_from_pb(r: pb::InverseKinematicsRequest) -> Result<IkSpec> {
         tolerance: r.tolerance,
         max_iterations: r.max_iterations,
         restarts: r.restarts,
+        solver: solver_from_pb(r.solver)?,
+        solutions: solutions_from_pb(r.solutions)?,
+        max_solutions: r.max_solutions,
     })
 }
 
@@ -145,5 +212,8 @@ pub fn ik_batch_spec_from_pb(r: pb::InverseKinematicsBatchRequest) -> Result<IkB
         tolerance: r.tolerance,
         max_iterations: r.max_iterations,
         restarts: r.restarts,
+        solver: solver_from_pb(r.solver)?,
+        solutions: solutions_from_pb(r.solutions)?,
+        max_solutions: r.max_solutions,
     })
 }

@@ -10,17 +10,22 @@
 //! (orientation). Depends on the kinematics crate (feature `ik`), serde and
 //! the robot, joints and base/tool modules; nothing async, no protocol.
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use kinserve_kinematics::Transform;
+use kinserve_kinematics::analytic_ik::AnalyticIk;
 use kinserve_kinematics::ik::{
     DEFAULT_MAX_ITERATIONS, DEFAULT_RESTARTS, DEFAULT_TOLERANCE, IkOptions, IkSolution, IkSolver,
 };
-use kinserve_kinematics::{JointKind, Transform};
 use serde::{Deserialize, Serialize};
 
 use crate::base_tool::{check_bounded, check_finite, rigid_from_matrix};
 use crate::error::{FieldViolation, ModelError, Result};
+use crate::ik_solutions::{
+    IK_DEFAULT_MAX_SOLUTIONS, IK_MAX_BATCH_SOLUTIONS, IK_MAX_SOLUTIONS, IkBranch, IkSolutionItem,
+    IkSolutionsMode, IkSolverChoice, IkSolverUsed, Singularity, analytic_solutions, pose_errors,
+};
 use crate::robot::{FkOptions, Robot};
 use crate::spec::{AngleUnit, QuaternionSpec, object_only};
 
@@ -86,6 +91,18 @@ pub struct IkSpec {
     /// Restarts from new configurations after a stalled attempt (default 100; 0 to 1,000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restarts: Option<u32>,
+    /// Which solver runs (default `auto`: the arm's closed form where it has
+    /// one and the target has an orientation, else numeric).
+    #[serde(default)]
+    pub solver: IkSolverChoice,
+    /// `best` (default): one answer; `all`: every solution inside the limits
+    /// in `solutions`, nearest the seed first (needs the closed form).
+    #[serde(default)]
+    pub solutions: IkSolutionsMode,
+    /// With `solutions: "all"`, at most this many (default 64; 1 to 1,024);
+    /// `truncated` says when more fit the limits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_solutions: Option<u32>,
 }
 
 /// `POST /v1/robots/{name}/ik/batch`: many targets, solved in order, each
@@ -118,6 +135,16 @@ pub struct IkBatchSpec {
     /// See [`IkSpec::restarts`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restarts: Option<u32>,
+    /// See [`IkSpec::solver`].
+    #[serde(default)]
+    pub solver: IkSolverChoice,
+    /// See [`IkSpec::solutions`] (per target).
+    #[serde(default)]
+    pub solutions: IkSolutionsMode,
+    /// See [`IkSpec::max_solutions`] (per target; `targets × max_solutions`
+    /// at most 100,000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_solutions: Option<u32>,
 }
 
 object_only!(IkTargetSpec);
@@ -141,6 +168,7 @@ pub struct IkRequest<'a> {
     /// Seed in internal units (rad / length unit).
     seed: Option<Vec<f64>>,
     options: IkOptions,
+    mode: Mode,
     angle_unit: AngleUnit,
 }
 
@@ -151,7 +179,18 @@ pub struct IkBatch<'a> {
     targets: Vec<IkTarget>,
     seed: Option<Vec<f64>>,
     options: IkOptions,
+    mode: Mode,
     angle_unit: AngleUnit,
+}
+
+/// How a validated request is solved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Mode {
+    solver: IkSolverChoice,
+    /// `solutions: "all"`.
+    all: bool,
+    /// `max_solutions`.
+    max: usize,
 }
 
 /// The answer to one target, in the request's units.
@@ -171,6 +210,17 @@ pub struct IkAnswer {
     pub iterations: u32,
     /// Tool pose at `joints`.
     pub pose: Transform,
+    /// The solver that produced `joints`.
+    pub solver: IkSolverUsed,
+    /// The closed-form branch of `joints` (`None` from the numeric solver).
+    pub branch: Option<IkBranch>,
+    /// Singularities `joints` stands at (closed form only).
+    pub singular: Vec<Singularity>,
+    /// With `solutions: "all"`: every solution, nearest the seed first
+    /// (`joints` is the first); empty when none fits.
+    pub solutions: Option<Vec<IkSolutionItem>>,
+    /// Whether more solutions fit the limits than `max_solutions`.
+    pub truncated: bool,
 }
 
 /// The shared options of single and batch requests, as written.
@@ -181,6 +231,9 @@ struct OptionFields<'a> {
     tolerance: Option<f64>,
     max_iterations: Option<u32>,
     restarts: Option<u32>,
+    solver: IkSolverChoice,
+    solutions: IkSolutionsMode,
+    max_solutions: Option<u32>,
 }
 
 impl Robot {
@@ -220,6 +273,7 @@ impl Robot {
         let mut v = Vec::new();
         let target = check_target(&spec.target, spec.position_only, "target", &mut v);
         let (seed, options) = self.check_options(&spec.option_fields(), &mut v);
+        let mode = self.check_mode(&spec.option_fields(), &mut v);
         if !v.is_empty() {
             return Err(ModelError::invalid(v));
         }
@@ -228,6 +282,7 @@ impl Robot {
             target,
             seed,
             options,
+            mode,
             angle_unit: spec.angle_unit,
         })
     }
@@ -243,14 +298,27 @@ impl Robot {
             .map(|(i, t)| check_target(t, spec.position_only, &format!("targets[{i}]"), &mut v))
             .collect();
         let (seed, options) = self.check_options(&spec.option_fields(), &mut v);
+        let mode = self.check_mode(&spec.option_fields(), &mut v);
         if !v.is_empty() {
             return Err(ModelError::invalid(v));
+        }
+        let answered = spec.targets.len() as u64 * mode.max as u64;
+        if mode.all && answered > IK_MAX_BATCH_SOLUTIONS {
+            return Err(ModelError::too_large(
+                "max_solutions",
+                format!(
+                    "a batch with solutions \"all\" answers at most {IK_MAX_BATCH_SOLUTIONS} \
+                     solutions (targets × max_solutions), this one up to {answered}: lower \
+                     max_solutions or split the batch"
+                ),
+            ));
         }
         Ok(IkBatch {
             robot: self,
             targets,
             seed,
             options,
+            mode,
             angle_unit: spec.angle_unit,
         })
     }
@@ -304,41 +372,155 @@ impl Robot {
         (seed, options)
     }
 
-    /// Joint values in `scale`·rad (revolute) → internal units.
-    fn to_internal(&self, q: &[f64], scale: f64) -> Vec<f64> {
-        q.iter()
-            .zip(self.joints())
-            .map(|(x, j)| match j.kind {
-                JointKind::Revolute => x * scale,
-                _ => *x,
-            })
-            .collect()
+    /// The solver and solution count asked for, or violations naming
+    /// `solver`, `solutions` or `max_solutions`.
+    fn check_mode(&self, o: &OptionFields<'_>, v: &mut Vec<FieldViolation>) -> Mode {
+        let all = o.solutions == IkSolutionsMode::All;
+        let max = o.max_solutions.unwrap_or(IK_DEFAULT_MAX_SOLUTIONS);
+        if !(1..=IK_MAX_SOLUTIONS).contains(&max) {
+            v.push(FieldViolation::new(
+                "max_solutions",
+                format!("must be from 1 to {IK_MAX_SOLUTIONS}, got {max}"),
+            ));
+        } else if o.max_solutions.is_some() && !all {
+            v.push(FieldViolation::new(
+                "max_solutions",
+                "applies to solutions \"all\" only: add \"solutions\": \"all\" or leave it out",
+            ));
+        }
+        let why_not = match self.analytic_ik() {
+            Err(e) => Some(e.to_string()),
+            Ok(_) if o.position_only => Some(
+                "the closed form solves full poses and position_only is true; \
+                 use the numeric solver"
+                    .to_string(),
+            ),
+            Ok(_) => None,
+        };
+        match (&why_not, o.solver) {
+            (Some(why), IkSolverChoice::Analytic) => {
+                v.push(FieldViolation::new(
+                    "solver",
+                    format!("{why} (\"auto\" or \"numeric\")"),
+                ));
+            }
+            (_, IkSolverChoice::Numeric) if all => v.push(FieldViolation::new(
+                "solutions",
+                "\"all\" comes from the closed form: use solver \"auto\" or \"analytic\", \
+                 or solutions \"best\" with the numeric solver",
+            )),
+            (Some(why), _) if all => v.push(FieldViolation::new(
+                "solutions",
+                format!("\"all\" needs the closed form, and {why} with solutions \"best\""),
+            )),
+            _ => {}
+        }
+        Mode {
+            solver: o.solver,
+            all,
+            max: max.clamp(1, IK_MAX_SOLUTIONS) as usize,
+        }
     }
 
-    /// Internal joint values → the request's unit, nudged by an ulp where
-    /// rounding would put a value at a limit just outside it (so an answer
-    /// always passes [`Robot::check_joints`] in that unit).
-    fn to_request_unit(&self, q: &[f64], unit: AngleUnit) -> Vec<f64> {
-        let scale = unit.to_rad();
-        q.iter()
-            .zip(self.joints())
-            .map(|(x, j)| {
-                if j.kind != JointKind::Revolute || scale == 1.0 {
-                    return *x;
-                }
-                let mut y = x / scale;
-                if let Some((lo, hi)) = j.limits {
-                    for _ in 0..4 {
-                        if y * scale > hi {
-                            y = y.next_down();
-                        } else if y * scale < lo {
-                            y = y.next_up();
-                        }
-                    }
-                }
-                y
-            })
-            .collect()
+    /// The closed form's answer: the solution nearest `seed` (rad; `None`:
+    /// the middle of the limits), every one with `solutions: "all"`; none
+    /// inside the limits answers the reference configuration, not converged.
+    /// Also the converged joints in internal units (to seed the next target).
+    fn analytic_answer(
+        &self,
+        ik: &AnalyticIk,
+        t: &IkTarget,
+        seed: Option<&[f64]>,
+        mode: &Mode,
+        tolerance: f64,
+        unit: AngleUnit,
+    ) -> (IkAnswer, Option<Vec<f64>>) {
+        let max = if mode.all { mode.max } else { 1 };
+        let (hits, truncated) = analytic_solutions(self, ik, &t.pose, seed, tolerance, max, unit);
+        let solutions = mode
+            .all
+            .then(|| hits.iter().map(|h| h.item.clone()).collect());
+        let Some(best) = hits.first() else {
+            let q = self.reference(seed);
+            let pose = self.chain().forward(&q, 1.0);
+            let (position_error, orientation_error) = pose_errors(&t.pose, &pose);
+            let answer = IkAnswer {
+                joints: self.to_request_unit(&q, unit),
+                converged: false,
+                position_error,
+                orientation_error: Some(orientation_error),
+                iterations: 0,
+                pose,
+                solver: IkSolverUsed::Analytic,
+                branch: None,
+                singular: Vec::new(),
+                solutions,
+                truncated: false,
+            };
+            return (answer, None);
+        };
+        let answer = IkAnswer {
+            joints: best.item.joints.clone(),
+            converged: true,
+            position_error: best.item.position_error,
+            orientation_error: Some(best.item.orientation_error),
+            iterations: 0,
+            pose: best.pose,
+            solver: IkSolverUsed::Analytic,
+            branch: best.item.branch,
+            singular: best.item.singular.clone(),
+            solutions,
+            truncated: mode.all && truncated,
+        };
+        (answer, Some(best.q.to_vec()))
+    }
+
+    /// `seed` (internal units), else the middle of each joint's limits (0
+    /// when unlimited).
+    fn reference(&self, seed: Option<&[f64]>) -> Vec<f64> {
+        match seed {
+            Some(s) => s.to_vec(),
+            None => self
+                .joints()
+                .iter()
+                .map(|j| j.limits.map_or(0.0, |(lo, hi)| 0.5 * (lo + hi)))
+                .collect(),
+        }
+    }
+
+    /// Solves one validated target: the closed form where the request and
+    /// the arm allow it, else (or when it finds nothing and the solver was
+    /// not forced) numerically. Also the converged joints in internal units.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_target(
+        &self,
+        solver: &IkSolver<'_>,
+        t: &IkTarget,
+        seed: Option<&[f64]>,
+        mode: &Mode,
+        opts: &IkOptions,
+        cancel: &AtomicBool,
+        unit: AngleUnit,
+    ) -> (IkAnswer, Option<Vec<f64>>) {
+        // Past the deadline (or cancelled) nothing is solved, as numerically.
+        let in_time =
+            !cancel.load(Ordering::Relaxed) && opts.deadline.is_none_or(|d| Instant::now() < d);
+        let closed_form = (in_time
+            && mode.solver != IkSolverChoice::Numeric
+            && t.oriented
+            && !opts.position_only)
+            .then(|| self.analytic_ik().ok())
+            .flatten();
+        if let Some(ik) = closed_form {
+            let (answer, q) = self.analytic_answer(ik, t, seed, mode, opts.tolerance, unit);
+            if answer.converged || mode.solver == IkSolverChoice::Analytic {
+                return (answer, q);
+            }
+        }
+        let s = solver.solve_cancellable(&t.pose, seed, opts, cancel);
+        let q = s.converged.then(|| s.q.clone());
+        let reference = self.reference(seed);
+        (self.answer(s, t, unit, mode, &reference), q)
     }
 
     fn solver(&self) -> IkSolver<'_> {
@@ -346,16 +528,48 @@ impl Robot {
         IkSolver::new(self.chain(), &limits)
     }
 
-    /// The solver's answer in the request's units; the orientation error only
-    /// when the target has an orientation.
-    fn answer(&self, s: IkSolution, t: &IkTarget, unit: AngleUnit) -> IkAnswer {
+    /// The numeric solver's answer in the request's units; the orientation
+    /// error only when the target has an orientation. With `solutions:
+    /// "all"` (the closed form found nothing) the converged answer is the one
+    /// solution, its distance the plain one to `reference` (rad).
+    fn answer(
+        &self,
+        s: IkSolution,
+        t: &IkTarget,
+        unit: AngleUnit,
+        mode: &Mode,
+        reference: &[f64],
+    ) -> IkAnswer {
+        let joints = self.to_request_unit(&s.q, unit);
+        let solutions = mode.all.then(|| {
+            let item = IkSolutionItem {
+                joints: joints.clone(),
+                branch: None,
+                singular: Vec::new(),
+                distance: s
+                    .q
+                    .iter()
+                    .zip(reference)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt(),
+                position_error: s.position_error,
+                orientation_error: s.orientation_error,
+            };
+            s.converged.then_some(item).into_iter().collect()
+        });
         IkAnswer {
-            joints: self.to_request_unit(&s.q, unit),
+            joints,
             converged: s.converged,
             position_error: s.position_error,
             orientation_error: t.oriented.then_some(s.orientation_error),
             iterations: s.iterations,
             pose: s.pose,
+            solver: IkSolverUsed::Numeric,
+            branch: None,
+            singular: Vec::new(),
+            solutions,
+            truncated: false,
         }
     }
 }
@@ -369,6 +583,9 @@ impl IkSpec {
             tolerance: self.tolerance,
             max_iterations: self.max_iterations,
             restarts: self.restarts,
+            solver: self.solver,
+            solutions: self.solutions,
+            max_solutions: self.max_solutions,
         }
     }
 }
@@ -382,6 +599,9 @@ impl IkBatchSpec {
             tolerance: self.tolerance,
             max_iterations: self.max_iterations,
             restarts: self.restarts,
+            solver: self.solver,
+            solutions: self.solutions,
+            max_solutions: self.max_solutions,
         }
     }
 }
@@ -484,13 +704,17 @@ impl IkRequest<'_> {
             deadline,
             ..self.options
         };
-        let s = self.robot.solver().solve_cancellable(
-            &self.target.pose,
+        let solver = self.robot.solver();
+        let (answer, _) = self.robot.solve_target(
+            &solver,
+            &self.target,
             self.seed.as_deref(),
+            &self.mode,
             &opts,
             cancel,
+            self.angle_unit,
         );
-        self.robot.answer(s, &self.target, self.angle_unit)
+        answer
     }
 }
 
@@ -533,11 +757,19 @@ impl IkBatch<'_> {
                     deadline: Some((now + per_target).min(deadline)),
                     ..self.options
                 };
-                let s = solver.solve_cancellable(&t.pose, seed.as_deref(), &opts, cancel);
-                if s.converged {
-                    seed = Some(s.q.clone());
+                let (answer, q) = self.robot.solve_target(
+                    &solver,
+                    t,
+                    seed.as_deref(),
+                    &self.mode,
+                    &opts,
+                    cancel,
+                    self.angle_unit,
+                );
+                if q.is_some() {
+                    seed = q;
                 }
-                self.robot.answer(s, t, self.angle_unit)
+                answer
             })
             .collect()
     }

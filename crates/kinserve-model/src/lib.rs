@@ -22,6 +22,7 @@ mod base_tool;
 mod closed_form;
 mod error;
 mod ik;
+mod ik_solutions;
 mod joints;
 mod json;
 mod pose_format;
@@ -38,6 +39,10 @@ pub use error::{FieldViolation, ModelError, Result, summary};
 pub use ik::{
     IK_MAX_ITERATIONS, IK_MAX_RESTARTS, IK_TOLERANCE_RANGE, IkAnswer, IkBatch, IkBatchSpec,
     IkRequest, IkSpec, IkTarget, IkTargetSpec,
+};
+pub use ik_solutions::{
+    IK_DEFAULT_MAX_SOLUTIONS, IK_MAX_BATCH_SOLUTIONS, IK_MAX_SOLUTIONS, IkBranch, IkSolutionItem,
+    IkSolutionsMode, IkSolverChoice, IkSolverUsed, Singularity,
 };
 pub use joints::{JointBatch, JointVector};
 pub use json::{

@@ -4,8 +4,12 @@
 //! the [`JointVector`](crate::JointVector) it makes.
 //!
 //! Depends on the spec, base/tool and error modules; must not depend on
-//! `joints.rs`, `ik.rs` or `velocity.rs` (they build on this one).
+//! `joints.rs`, `ik.rs`, `ik_solutions.rs` or `velocity.rs` (they build on
+//! this one). It classifies the chain's closed-form IK once ([`Robot::analytic_ik`]).
 
+use std::sync::Arc;
+
+use kinserve_kinematics::analytic_ik::{AnalyticIk, NotAnalytic};
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 
 use crate::base_tool::{check_bounded, transform_from_spec};
@@ -86,6 +90,8 @@ pub struct Robot {
     spec: RobotSpec,
     chain: Chain,
     joints: Vec<Joint>,
+    /// The closed-form IK, classified once here (or why there is none).
+    analytic: Result<Arc<AnalyticIk>, NotAnalytic>,
 }
 
 impl Robot {
@@ -123,11 +129,26 @@ impl Robot {
             ConventionSpec::Modified => Convention::Modified,
         };
         let chain = Chain::new(convention, &rows, base, tool);
+        let analytic = AnalyticIk::new(&chain).map(Arc::new);
         Ok(Robot {
             spec,
             chain,
             joints,
+            analytic,
         })
+    }
+
+    /// The arm's closed-form IK (every solution; classified at
+    /// registration), or why it has none: not six joints, a prismatic joint,
+    /// or a geometry without a closed form here.
+    pub fn analytic_ik(&self) -> std::result::Result<&AnalyticIk, NotAnalytic> {
+        self.analytic.as_deref().map_err(|e| *e)
+    }
+
+    /// The closed-form class (`spherical_wrist_parallel_23`,
+    /// `three_parallel_234`, …), or `None` when only the numeric solver applies.
+    pub fn ik_class(&self) -> Option<&'static str> {
+        self.analytic.as_ref().ok().map(|ik| ik.class().name())
     }
 
     /// The robot's name.
@@ -340,4 +361,44 @@ pub(crate) fn round6(x: f64) -> String {
         s
     };
     if s == "-0" { "0".into() } else { s }
+}
+
+/// Unit conversions of joint values (requests and answers).
+impl Robot {
+    /// Joint values in `scale`·rad (revolute) → internal units.
+    pub(crate) fn to_internal(&self, q: &[f64], scale: f64) -> Vec<f64> {
+        q.iter()
+            .zip(self.joints())
+            .map(|(x, j)| match j.kind {
+                JointKind::Revolute => x * scale,
+                _ => *x,
+            })
+            .collect()
+    }
+
+    /// Internal joint values → the request's unit, nudged by an ulp where
+    /// rounding would put a value at a limit just outside it (so an answer
+    /// always passes [`Robot::check_joints`] in that unit).
+    pub(crate) fn to_request_unit(&self, q: &[f64], unit: AngleUnit) -> Vec<f64> {
+        let scale = unit.to_rad();
+        q.iter()
+            .zip(self.joints())
+            .map(|(x, j)| {
+                if j.kind != JointKind::Revolute || scale == 1.0 {
+                    return *x;
+                }
+                let mut y = x / scale;
+                if let Some((lo, hi)) = j.limits {
+                    for _ in 0..4 {
+                        if y * scale > hi {
+                            y = y.next_down();
+                        } else if y * scale < lo {
+                            y = y.next_up();
+                        }
+                    }
+                }
+                y
+            })
+            .collect()
+    }
 }

@@ -88,6 +88,7 @@ impl KinematicsService for GrpcService {
                 convention: kinserve_api::convention_to_pb(s.convention) as i32,
                 length_unit: pb::LengthUnit::from(s.length_unit) as i32,
                 source: origin_to_pb(s.origin) as i32,
+                ik_class: s.ik_class.map(str::to_string),
             })
             .collect();
         Ok(Response::new(pb::ListRobotsResponse {

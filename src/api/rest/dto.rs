@@ -6,7 +6,10 @@ use utoipa::ToSchema;
 use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositions};
 use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
 use crate::kinematics::Transform;
-use crate::model::{AngleUnit, ConventionSpec, FkOptions, IkSpec, LengthUnit, ReferenceFrame};
+use crate::model::{
+    AngleUnit, ConventionSpec, FkOptions, IkAnswer, IkBranch, IkSolutionItem, IkSolverUsed, IkSpec,
+    LengthUnit, ReferenceFrame, Singularity,
+};
 use crate::model::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
     StreamOp,
@@ -30,11 +33,18 @@ pub struct RobotSummaryDto {
     /// `builtin` (read-only, from robots/) or `registered` (through the API).
     #[schema(example = "builtin")]
     pub source: String,
+    /// Closed-form IK class (`spherical_wrist_parallel_23`,
+    /// `spherical_wrist_intersecting_12`, `spherical_wrist_intersecting_23`,
+    /// `three_parallel_234`): `solver: "analytic"` and `solutions: "all"`
+    /// work; absent when only the numeric solver applies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(example = "spherical_wrist_parallel_23")]
+    pub ik_class: Option<String>,
 }
 
 /// `GET /v1/robots`.
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin"}]}))]
+#[schema(example = json!({"robots": [{"name": "planar_2dof", "dof": 2, "convention": "standard", "length_unit": "m", "source": "builtin"}, {"name": "puma560", "dof": 6, "convention": "standard", "length_unit": "m", "source": "builtin", "ik_class": "spherical_wrist_parallel_23"}]}))]
 pub struct RobotList {
     /// One page of robots, sorted by name.
     pub robots: Vec<RobotSummaryDto>,
@@ -585,4 +595,33 @@ pub struct WsIk {
     pub orientation_error: Option<f64>,
     /// Solver iterations.
     pub iterations: u32,
+    /// The solver that ran (`analytic` or `numeric`).
+    pub solver: IkSolverUsed,
+    /// The closed-form branch of `joints` (`null` from the numeric solver).
+    pub branch: Option<IkBranch>,
+    /// Singularities `joints` stands at.
+    pub singular: Vec<Singularity>,
+    /// With `solutions: "all"` only: every solution, nearest the seed first.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solutions: Option<Vec<IkSolutionItem>>,
+    /// With `solutions: "all"` only: whether more fit than `max_solutions`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truncated: Option<bool>,
+}
+
+impl From<&IkAnswer> for WsIk {
+    fn from(a: &IkAnswer) -> Self {
+        WsIk {
+            joints: a.joints.clone(),
+            converged: a.converged,
+            position_error: a.position_error,
+            orientation_error: a.orientation_error,
+            iterations: a.iterations,
+            solver: a.solver,
+            branch: a.branch,
+            singular: a.singular.clone(),
+            solutions: a.solutions.clone(),
+            truncated: a.solutions.is_some().then_some(a.truncated),
+        }
+    }
 }

@@ -95,6 +95,7 @@ pub async fn list_robots(
             convention: s.convention,
             length_unit: s.length_unit,
             source: origin_str(s.origin).to_string(),
+            ik_class: s.ik_class.map(str::to_string),
         })
         .collect();
     Ok(Json(RobotList {

@@ -314,13 +314,7 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
         StreamAnswer::Ik(a) => WsReply {
-            ik: Some(WsIk {
-                joints: a.joints.clone(),
-                converged: a.converged,
-                position_error: a.position_error,
-                orientation_error: a.orientation_error,
-                iterations: a.iterations,
-            }),
+            ik: Some(WsIk::from(a)),
             ..WsReply::posed(id, length_unit, PoseFormat::Full, a.pose, None)
         },
         StreamAnswer::Fk {

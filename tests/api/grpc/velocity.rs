@@ -15,13 +15,13 @@ use tonic_types::StatusExt;
 
 use crate::helpers::*;
 
-fn matrix_pb(pose: &Value) -> pb::Matrix4 {
+pub(super) fn matrix_pb(pose: &Value) -> pb::Matrix4 {
     pb::Matrix4 {
         values: matrix16(pose),
     }
 }
 
-fn ik_request(
+pub(super) fn ik_request(
     robot: &str,
     target: pb::IkTarget,
     unit: pb::AngleUnit,
@@ -35,7 +35,7 @@ fn ik_request(
 }
 
 /// REST JSON numbers of an array.
-fn floats(v: &Value) -> Vec<f64> {
+pub(super) fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .unwrap()
         .iter()
@@ -44,23 +44,23 @@ fn floats(v: &Value) -> Vec<f64> {
 }
 
 /// The pose of a JSON answer as the 16 matrix values.
-fn same_pose(json: &Value, p: &pb::Pose, what: &str) {
+pub(super) fn same_pose(json: &Value, p: &pb::Pose, what: &str) {
     assert_eq!(matrix16(json), p.matrix, "{what}: matrix");
 }
 
 /// A server whose IK time cap is far out of reach, so that answers compared
 /// across protocols cannot differ by where a loaded machine cut a solve short.
-async fn spawn_ik_app() -> TestApp {
+pub(super) async fn spawn_ik_app() -> TestApp {
     spawn_app_with(|c| c.ik_time_limit = std::time::Duration::from_secs(30)).await
 }
 
-async fn rest_ok(app: &TestApp, path: &str, body: &Value) -> Value {
+pub(super) async fn rest_ok(app: &TestApp, path: &str, body: &Value) -> Value {
     let r = app.post(path, body).await;
     assert_eq!(r.status(), 200, "{path}");
     r.json().await.unwrap()
 }
 
-async fn ws_one(app: &TestApp, robot: &str, msg: Value) -> Value {
+pub(super) async fn ws_one(app: &TestApp, robot: &str, msg: Value) -> Value {
     let mut sock = open_ws(app, robot).await;
     sock.send(Message::Text(msg.to_string().into()))
         .await

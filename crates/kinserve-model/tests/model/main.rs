@@ -8,6 +8,7 @@
 //! feature for the unchecked FK of expected values).
 mod closed_form;
 mod ik_requests;
+mod ik_solutions;
 mod model;
 mod urdf;
 mod urdf_import;
