@@ -520,3 +520,54 @@ async fn a_sample_ratio_of_zero_drops_new_traces_but_follows_a_sampled_caller() 
         .await;
     assert!(received.spans_of(&unhex(&unsampled)).is_empty());
 }
+
+const WS_CALLER: Caller = Caller {
+    trace: "33333333333333333333333333333333",
+    span: "4444444444444444",
+};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_websocket_upgrade_joins_the_callers_trace_and_its_stream_is_spanned() {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let (endpoint, received) = grpc_collector().await;
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), &exporting_env(&endpoint, "grpc")).await;
+    let mut req = format!("{}/v1/robots/puma560/fk/stream", server.ws())
+        .into_client_request()
+        .unwrap();
+    req.headers_mut()
+        .insert("traceparent", WS_CALLER.traceparent().parse().unwrap());
+    let (mut sock, resp) = tokio_tungstenite::connect_async(req).await.unwrap();
+    let (trace, upgrade_span) = answered(
+        resp.headers()
+            .get("traceparent")
+            .map(|v| v.to_str().unwrap()),
+    );
+    assert_eq!(trace, WS_CALLER.trace);
+    let reply = ws_ask(
+        &mut sock,
+        &json!({"id": 1, "joints": [JOINT, 0, 0, 0, 0, 0]}),
+    )
+    .await;
+    assert!(reply.get("pose").is_some(), "{reply}");
+    drop(sock);
+    let spans = received
+        .wait_for(&unhex(WS_CALLER.trace), |s| {
+            s.iter().any(|x| x.name == "stream")
+        })
+        .await;
+    let root = named(&spans, "GET /v1/robots/{name}/fk/stream");
+    assert_eq!(root.parent_span_id, unhex(WS_CALLER.span));
+    assert_eq!(root.span_id, unhex(&upgrade_span));
+    assert_eq!(
+        attr(root, "http.response.status_code"),
+        Some(&AnyValue::IntValue(101))
+    );
+    let stream = named(&spans, "stream");
+    assert_eq!(stream.parent_span_id, root.span_id);
+    assert_eq!(
+        attr(stream, "protocol"),
+        Some(&AnyValue::StringValue("websocket".into()))
+    );
+    assert_no_joint_values(&received.all());
+}
