@@ -159,6 +159,12 @@ fn provider(
     config: &TraceConfig,
     runtime: &tokio::runtime::Handle,
 ) -> Result<SdkTracerProvider, String> {
+    if !endpoint.starts_with("http://") {
+        return Err(format!(
+            "--otlp-endpoint {endpoint}: give an http:// URL (the exporter is built without TLS: \
+             send to a collector on the same host or pod, which forwards over TLS)"
+        ));
+    }
     // The tonic channel spawns its worker on the runtime it is built in.
     let _entered = runtime.enter();
     let exporter = match config.otlp_protocol {
