@@ -3,8 +3,10 @@
 //! ([`GrpcTraceLayer`]) read `traceparent`/`tracestate`, open the request's
 //! server span as the caller's child, put the trace id in the request's
 //! extensions for the access log, and answer the server span's
-//! `traceparent` (and the caller's `tracestate`). With export off they only
-//! read the caller's trace id for the access log (no allocation, no span).
+//! `traceparent` (and the caller's `tracestate`). With export off the REST
+//! router leaves the middleware out (its access log reads the caller's trace
+//! id itself) and the gRPC layer only reads the caller's trace id for the
+//! access log (no allocation, no span).
 //! Also the helpers the service uses to name the robot and the batch size on
 //! the request span. Depends on `traces` and `w3c` only (not on an adapter).
 
@@ -113,7 +115,7 @@ fn start(span: &tracing::Span, headers: &HeaderMap) -> Option<(TraceId, Answer)>
 }
 
 /// The caller's trace id, from a valid `traceparent` (export off: the access log's only source).
-fn caller_trace_id(headers: &HeaderMap) -> Option<TraceId> {
+pub fn caller_trace_id(headers: &HeaderMap) -> Option<TraceId> {
     let v = headers.get(TRACEPARENT)?;
     TraceParent::parse(v.as_bytes()).map(|tp| TraceId(tp.trace_id))
 }
@@ -122,9 +124,6 @@ fn caller_trace_id(headers: &HeaderMap) -> Option<TraceId> {
 /// log): the server span of the request, `POST /v1/robots/{name}/fk`.
 pub async fn rest_request(mut req: Request, next: Next) -> Response {
     if !exporting() {
-        if let Some(id) = caller_trace_id(req.headers()) {
-            req.extensions_mut().insert(id);
-        }
         return next.run(req).await;
     }
     let route = req

@@ -438,7 +438,13 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             .unwrap_or("")
             .to_string()
     });
-    let trace_id = req.extensions().get::<TraceId>().copied();
+    // Export on: the server span's trace (set by the span middleware); off:
+    // the caller's `traceparent`, read only for the access log.
+    let trace_id = req.extensions().get::<TraceId>().copied().or_else(|| {
+        access_log
+            .then(|| crate::telemetry::spans::caller_trace_id(req.headers()))
+            .flatten()
+    });
     let resp = next.run(req).await;
     if let Some(request_id) = request_id {
         tracing::info!(
@@ -587,7 +593,12 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
                 })
                 .on_failure(log_failure),
         )
-        .layer(middleware::from_fn(crate::telemetry::spans::rest_request))
+        // Server spans only when they are exported: with export off the
+        // layer is not there at all.
+        .layer(tower::util::option_layer(
+            crate::telemetry::traces::exporting()
+                .then(|| middleware::from_fn(crate::telemetry::spans::rest_request)),
+        ))
         .layer(PropagateRequestIdLayer::x_request_id())
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
         .layer(cors)
