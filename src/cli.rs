@@ -1,5 +1,5 @@
 //! The `kinserve` command line: `serve` (default), `validate`, `fk`,
-//! `jacobian`, `ik`, `closed-form`, `urdf`, `import-urdf`, `bench` (in [`crate::bench`]),
+//! `jacobian`, `ik`, `ik-path`, `closed-form`, `urdf`, `import-urdf`, `bench` (in [`crate::bench`]),
 //! `healthcheck`.
 
 use std::io::{Read, Write};
@@ -7,19 +7,20 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::process::ExitCode;
 use std::time::Duration;
 
-use crate::api::ik::{IkItem, IkOutput};
+use crate::api::ik::{IkItem, IkOutput, IkPathOutput};
 use crate::api::jacobian::{JacobianItem, JacobianOutput};
 use crate::api::pose::{FkOutput, Pose};
 use crate::api::rest::LinkTransformsOutput;
 use crate::config::{
     Cli, ClosedFormArgs, ClosedFormFormat, Command, ConventionArg, FkArgs, FrameArg, IkArgs,
-    ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig, SolverArg,
+    IkPathArgs, ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
+    SolverArg,
 };
 use crate::error::Error;
 use crate::model::{
-    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkSolutionsMode, IkSolverChoice, IkSpec,
-    IkTargetSpec, ModelLimits, QuaternionSpec, ReferenceFrame, Robot, UrdfImport, import_urdf,
-    load_robot_file, to_urdf,
+    AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkPathSpec, IkSolutionsMode, IkSolverChoice,
+    IkSpec, IkTargetSpec, ModelLimits, QuaternionSpec, ReferenceFrame, Robot, UrdfImport,
+    import_urdf, load_robot_file, to_urdf,
 };
 use crate::registry::builtin;
 
@@ -57,6 +58,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Jacobian(args)) => jacobian(&args),
         Some(Command::LinkTransforms(args)) => link_transforms(&args),
         Some(Command::Ik(args)) => ik(&args),
+        Some(Command::IkPath(args)) => ik_path(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
         Some(Command::Urdf(args)) => urdf(&args),
         Some(Command::ImportUrdf(args)) => import_urdf_file(&args),
@@ -64,7 +66,16 @@ pub fn run(cli: Cli) -> ExitCode {
             Ok(robot) => crate::bench::run(&robot, &args),
             Err(code) => code,
         },
-        Some(Command::Healthcheck { addr, timeout }) => healthcheck(&addr, timeout),
+        Some(Command::Healthcheck {
+            addr,
+            timeout,
+            tls,
+            client_cert,
+            client_key,
+        }) => {
+            let client = client_cert.as_deref().zip(client_key.as_deref());
+            healthcheck(&addr, timeout, tls.then_some(client))
+        }
     }
 }
 
@@ -191,9 +202,12 @@ fn angle_unit(deg: bool) -> AngleUnit {
 }
 
 /// Prints `value` as pretty JSON; `code` if that worked.
+/// Prints `value` as indented JSON with every list of scalars on one line
+/// (so a 4×4 matrix reads as four rows), then returns `code`.
 fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
     match serde_json::to_string_pretty(value) {
         Ok(s) => {
+            let s = scalar_lists_on_one_line(&s);
             outln!("{s}");
             code
         }
@@ -202,6 +216,53 @@ fn print_json(value: &impl serde::Serialize, code: ExitCode) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Rewrites serde_json's pretty output so that an array holding only
+/// scalars (numbers, strings, booleans, null) is one line, `[1.0, -0.0, 2.5]`;
+/// arrays of arrays or objects stay one element per line. The values and
+/// their text are unchanged (only whitespace moves).
+///
+/// ```text
+/// "position": [        ->   "position": [0.4521, -0.15005, 1.10363]
+///   0.4521,
+///   -0.15005,
+///   1.10363
+/// ]
+/// ```
+fn scalar_lists_on_one_line(pretty: &str) -> String {
+    let lines: Vec<&str> = pretty.lines().collect();
+    let mut out: Vec<String> = Vec::with_capacity(lines.len());
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i];
+        if line.ends_with('[') {
+            let items: Vec<&str> = lines[i + 1..]
+                .iter()
+                .take_while(|l| !l.trim_start().starts_with(']'))
+                .map(|l| l.trim())
+                .collect();
+            let close = lines.get(i + 1 + items.len()).map(|l| l.trim());
+            if let Some(close) = close
+                && !items.is_empty()
+                && items.iter().all(|item| is_scalar(item))
+            {
+                let joined = items.join(" ");
+                out.push(format!("{line}{joined}{close}"));
+                i += items.len() + 2;
+                continue;
+            }
+        }
+        out.push(line.to_string());
+        i += 1;
+    }
+    out.join("\n")
+}
+
+/// Whether one line of pretty JSON is a scalar array element (with its comma).
+fn is_scalar(item: &str) -> bool {
+    let value = item.strip_suffix(',').unwrap_or(item);
+    serde_json::from_str::<serde_json::Value>(value).is_ok_and(|v| !(v.is_array() || v.is_object()))
 }
 
 fn jacobian(args: &JacobianArgs) -> ExitCode {
@@ -298,11 +359,7 @@ fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
         restarts: args.restarts,
-        solver: match args.solver {
-            SolverArg::Auto => IkSolverChoice::Auto,
-            SolverArg::Analytic => IkSolverChoice::Analytic,
-            SolverArg::Numeric => IkSolverChoice::Numeric,
-        },
+        solver: solver(args.solver),
         solutions: if args.all {
             IkSolutionsMode::All
         } else {
@@ -342,6 +399,95 @@ fn ik(args: &IkArgs) -> ExitCode {
             Error::ik_not_converged(answer, robot.length_unit().as_str())
         );
         print_json(&out, ExitCode::FAILURE)
+    }
+}
+
+/// `kinserve ik-path`: the path the flags describe, solved once.
+fn ik_path(args: &IkPathArgs) -> ExitCode {
+    let robot = match load_model(&args.which) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let mut waypoints = Vec::new();
+    for (i, w) in args.waypoints.iter().enumerate() {
+        match waypoint(w, args.position_only) {
+            Ok(t) => waypoints.push(t),
+            Err(e) => {
+                eprintln!("--waypoint #{}: {e}", i + 1);
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    let spec = IkPathSpec {
+        start: args.start.clone(),
+        waypoints,
+        angle_unit: angle_unit(args.deg),
+        position_only: args.position_only,
+        max_step_length: args.max_step_length,
+        max_step_angle: args.max_step_angle,
+        max_joint_step: args.max_joint_step,
+        tolerance: args.tolerance,
+        solver: solver(args.solver),
+        ..IkPathSpec::default()
+    };
+    let request = match robot.check_ik_path(&spec, 10_000) {
+        Ok(r) => r,
+        Err(e) => {
+            print_error("ik-path", &e.into());
+            return ExitCode::FAILURE;
+        }
+    };
+    let answer = request.solve(std::time::Instant::now().checked_add(args.time_limit));
+    let out = IkPathOutput::new(robot.name(), robot.length_unit(), spec.angle_unit, answer);
+    match &out.stop {
+        None => print_json(&out, ExitCode::SUCCESS),
+        Some(stop) => {
+            eprintln!(
+                "ik-path: stopped at step {} (waypoint {}): {}: {}",
+                stop.step,
+                stop.waypoint,
+                stop.reason.as_str(),
+                stop.detail
+            );
+            print_json(&out, ExitCode::FAILURE)
+        }
+    }
+}
+
+/// One `--waypoint`: 7 numbers (position, quaternion w,x,y,z) or 3 with
+/// `--position-only`.
+fn waypoint(text: &str, position_only: bool) -> Result<IkTargetSpec, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match (v.as_slice(), position_only) {
+        (&[x, y, z, w, qx, qy, qz], _) => Ok(IkTargetSpec {
+            position: Some([x, y, z]),
+            quaternion: Some(QuaternionSpec {
+                w,
+                x: qx,
+                y: qy,
+                z: qz,
+            }),
+            matrix: None,
+        }),
+        (&[x, y, z], true) => Ok(IkTargetSpec {
+            position: Some([x, y, z]),
+            ..IkTargetSpec::default()
+        }),
+        _ => Err(format!(
+            "give x,y,z,w,qx,qy,qz (or x,y,z with --position-only), got {} values",
+            v.len()
+        )),
+    }
+}
+
+fn solver(s: SolverArg) -> IkSolverChoice {
+    match s {
+        SolverArg::Auto => IkSolverChoice::Auto,
+        SolverArg::Analytic => IkSolverChoice::Analytic,
+        SolverArg::Numeric => IkSolverChoice::Numeric,
     }
 }
 
@@ -503,23 +649,32 @@ pub fn name_from_file(path: &std::path::Path) -> String {
     }
 }
 
-/// `GET /readyz` over a plain TCP connection (no HTTP client needed in the image).
-fn healthcheck(addr: &str, timeout: Duration) -> ExitCode {
+/// `GET /readyz` over a plain TCP connection (no HTTP client needed in the
+/// image), or over TLS when `tls` is set (with the client certificate and
+/// key files it holds, if any).
+fn healthcheck(
+    addr: &str,
+    timeout: Duration,
+    tls: Option<Option<(&std::path::Path, &std::path::Path)>>,
+) -> ExitCode {
     let probe = || -> std::io::Result<bool> {
         let sock = addr
             .to_socket_addrs()?
             .next()
             .ok_or_else(|| std::io::Error::other("address resolves to nothing"))?;
-        let mut s = TcpStream::connect_timeout(&sock, timeout)?;
+        let s = TcpStream::connect_timeout(&sock, timeout)?;
         s.set_read_timeout(Some(timeout))?;
         s.set_write_timeout(Some(timeout))?;
-        s.write_all(
-            format!("GET /readyz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes(),
-        )?;
-        let mut buf = [0u8; 64];
-        let n = s.read(&mut buf)?;
-        let head = String::from_utf8_lossy(&buf[..n]);
-        Ok(head.starts_with("HTTP/1.1 200") || head.starts_with("HTTP/1.0 200"))
+        match tls {
+            None => ask_ready(s, addr),
+            Some(client) => {
+                let host = addr.rsplit_once(':').map_or(addr, |(h, _)| h);
+                let host = host.trim_start_matches('[').trim_end_matches(']');
+                let s =
+                    crate::tls::probe::connect(s, host, client).map_err(std::io::Error::other)?;
+                ask_ready(s, addr)
+            }
+        }
     };
     match probe() {
         Ok(true) => ExitCode::SUCCESS,
@@ -531,5 +686,45 @@ fn healthcheck(addr: &str, timeout: Duration) -> ExitCode {
             eprintln!("kinserve at {addr} is unreachable: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Sends `GET /readyz` on `s`; whether the answer is 200.
+fn ask_ready(mut s: impl Read + Write, addr: &str) -> std::io::Result<bool> {
+    s.write_all(
+        format!("GET /readyz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").as_bytes(),
+    )?;
+    s.flush()?;
+    let mut buf = [0u8; 64];
+    let n = s.read(&mut buf)?;
+    let head = String::from_utf8_lossy(&buf[..n]);
+    Ok(head.starts_with("HTTP/1.1 200") || head.starts_with("HTTP/1.0 200"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scalar_lists_on_one_line;
+
+    #[test]
+    fn matrices_print_one_row_per_line_and_values_stay_as_printed() {
+        let value = serde_json::json!({
+            "matrix": [[1.0, -0.0, 0.0, 0.4521], [0.0, 1.0, 0.0, -0.15005]],
+            "names": ["a", "b,]"],
+            "frames": [{"position": [0.0, 1.0, 2.0]}],
+            "empty": []
+        });
+        let pretty = serde_json::to_string_pretty(&value).unwrap();
+        let compact = scalar_lists_on_one_line(&pretty);
+        assert!(
+            compact.contains("\n    [1.0, -0.0, 0.0, 0.4521],\n"),
+            "{compact}"
+        );
+        assert!(compact.contains("\"names\": [\"a\", \"b,]\"]"), "{compact}");
+        assert!(
+            compact.contains("\"position\": [0.0, 1.0, 2.0]"),
+            "{compact}"
+        );
+        let back: serde_json::Value = serde_json::from_str(&compact).unwrap();
+        assert_eq!(back, value, "only whitespace moved");
     }
 }

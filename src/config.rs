@@ -51,6 +51,10 @@ pub enum Command {
     /// API's `ik` response); exits 1 (printing the best attempt) if the
     /// target is not reached within the tolerance.
     Ik(IkArgs),
+    /// Solve a Cartesian path once and print it as JSON (the REST API's
+    /// `ik/path` response); exits 1 (printing the steps taken and why it
+    /// stopped) if the path stops before its end.
+    IkPath(IkPathArgs),
     /// Print the closed-form FK of a robot's DH table as JSON (the REST API's
     /// `closed-form` response), or one rendering of ⁰Tₙ with --format.
     ClosedForm(ClosedFormArgs),
@@ -75,6 +79,25 @@ pub enum Command {
         /// Give up after this long.
         #[arg(long, default_value = "3s", value_parser = parse_duration)]
         timeout: Duration,
+        /// Probe over TLS (a server with --tls-cert); the server's
+        /// certificate is not checked: the probe asks about readiness, not identity.
+        #[arg(long, env = "KINSERVE_HEALTHCHECK_TLS", action = clap::ArgAction::SetTrue)]
+        tls: bool,
+        /// With --tls: present this client certificate (PEM), for a server
+        /// that requires one (--tls-client-ca). Needs --client-key.
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_CERT",
+            requires = "client_key"
+        )]
+        client_cert: Option<PathBuf>,
+        /// The private key of --client-cert (PEM).
+        #[arg(
+            long,
+            env = "KINSERVE_HEALTHCHECK_CLIENT_KEY",
+            requires = "client_cert"
+        )]
+        client_key: Option<PathBuf>,
     },
 }
 
@@ -157,6 +180,51 @@ pub enum FrameArg {
     Base,
     /// The tool frame.
     Tool,
+}
+
+/// Arguments of `kinserve ik-path`: a start configuration and one or more
+/// `--waypoint`s.
+#[derive(Debug, Args)]
+pub struct IkPathArgs {
+    /// The robot.
+    #[command(flatten)]
+    pub which: ModelArgs,
+    /// Start configuration, comma separated, in the answer's angle unit.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub start: Vec<f64>,
+    /// A pose to pass through: x,y,z,w,qx,qy,qz (position and quaternion), or
+    /// x,y,z with --position-only. Repeat for more, in order.
+    #[arg(long = "waypoint", required = true, allow_hyphen_values = true)]
+    pub waypoints: Vec<String>,
+    /// Start, --max-joint-step and answer in degrees.
+    #[arg(long)]
+    pub deg: bool,
+    /// Match positions only.
+    #[arg(long)]
+    pub position_only: bool,
+    /// Longest Cartesian step, robot length unit (default 0.01 m or 10 mm).
+    #[arg(long)]
+    pub max_step_length: Option<f64>,
+    /// Largest orientation change per step, rad (default 0.05).
+    #[arg(long)]
+    pub max_step_angle: Option<f64>,
+    /// Largest move of a joint between steps (default 20°; prismatic: ten steps).
+    #[arg(long)]
+    pub max_joint_step: Option<f64>,
+    /// IK tolerance per step (default 1e-9).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Which solver runs per step.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+    /// Give up after this long (the steps so far are printed; at most 60 s).
+    #[arg(long, default_value = "10s", value_parser = parse_ik_time_limit)]
+    pub time_limit: Duration,
 }
 
 /// `kinserve ik --solver`.
@@ -515,6 +583,9 @@ pub struct ServeConfig {
     /// long after it opened is closed (at most --stream-idle-timeout).
     #[arg(long, env = "KINSERVE_STREAM_FIRST_MESSAGE_TIMEOUT", default_value = "10s", value_parser = parse_duration)]
     pub stream_first_message_timeout: Duration,
+    /// TLS on the listeners and to the database (docs/tls.md).
+    #[command(flatten)]
+    pub tls: crate::tls::TlsOptions,
 }
 
 impl std::fmt::Debug for ServeConfig {
@@ -558,6 +629,7 @@ impl std::fmt::Debug for ServeConfig {
             client_share_percent,
             trust_forwarded_for,
             stream_first_message_timeout,
+            tls,
         } = self;
         f.debug_struct("ServeConfig")
             .field("http_addr", http_addr)
@@ -598,6 +670,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("client_share_percent", client_share_percent)
             .field("trust_forwarded_for", trust_forwarded_for)
             .field("stream_first_message_timeout", stream_first_message_timeout)
+            .field("tls", tls)
             .finish()
     }
 }
@@ -815,6 +888,7 @@ mod tests {
             ("--shutdown-grace", "1e30s", "at most 24h"),
             ("--shutdown-timeout", "1e30s", "at most 24h"),
             ("--database-resync-interval", "1e30s", "at most 24h"),
+            ("--tls-reload-interval", "1e30s", "at most 24h"),
             ("--ik-time-limit", "1e18s", "at most 60s"),
             ("--max-batch", "1000001", "at most 1000000"),
             ("--max-robots", "1000001", "at most 1000000"),

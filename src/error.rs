@@ -155,6 +155,40 @@ pub enum Error {
 }
 
 impl Error {
+    /// The problem kind: REST's `urn:kinserve:problem:<kind>` and, in
+    /// SCREAMING_SNAKE (`invalid-input` -> `INVALID_INPUT`), the `reason` of
+    /// the `google.rpc.ErrorInfo` every gRPC error status carries, so that
+    /// clients tell problems apart the same way on both protocols.
+    /// Exhaustive: every error has its kind here.
+    ///
+    /// ```
+    /// assert_eq!(kinserve::error::Error::Overloaded.kind(), "overloaded");
+    /// ```
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Error::Malformed { .. } => "malformed-request",
+            Error::Invalid { .. } => "invalid-input",
+            Error::NotFound { .. } => "not-found",
+            Error::NoRoute { .. } => "no-route",
+            Error::AlreadyExists { .. } => "already-exists",
+            Error::ReadOnly { .. } => "read-only",
+            Error::Unauthenticated => "unauthenticated",
+            Error::Forbidden { .. } => "forbidden",
+            Error::Full { .. } => "registry-full",
+            Error::TooLarge { .. } => "too-large",
+            Error::UnsupportedMediaType { .. } => "unsupported-media-type",
+            Error::Overloaded => "overloaded",
+            Error::Unavailable { .. } => "unavailable",
+            Error::Storage { .. } => "storage",
+            Error::IkNotConverged { .. } => "ik-not-converged",
+            Error::PreconditionFailed { .. } => "precondition-failed",
+            Error::StoreUnavailable { .. } => "store-unavailable",
+            Error::RequestTimeout { .. } => "request-timeout",
+            Error::NotImplemented { .. } => "not-implemented",
+            Error::Internal { .. } => "internal",
+        }
+    }
+
     /// An [`Error::Invalid`] with a single field violation.
     pub fn invalid_field(field: impl Into<String>, message: impl Into<String>) -> Self {
         ModelError::invalid_field(field, message).into()

@@ -23,6 +23,7 @@ pub mod registry;
 pub mod service;
 pub mod startup;
 pub mod telemetry;
+pub mod tls;
 
 pub use error::{Error, FieldViolation, Result};
 pub use kinserve_kinematics as kinematics;

@@ -11,9 +11,9 @@ use crate::compute::{ClientId, ComputePool, cancelled, share_of, stopped};
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
 use crate::model::{
-    FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkSpec, JacobianAnswer, JacobianBatchSpec,
-    JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits, PoseFormat, Robot,
-    RobotSpec, StreamOp,
+    FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkPathAnswer, IkPathSpec, IkSpec, JacobianAnswer,
+    JacobianBatchSpec, JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits,
+    PoseFormat, Robot, RobotSpec, StreamOp,
 };
 use crate::registry::{ClosedFormResult, Condition, Entry, Origin, PutMode, Registry};
 
@@ -140,7 +140,9 @@ impl Service {
                 } else {
                     "missing"
                 };
-                tracing::info!(target: "kinserve::audit", token, result = "refused", "registry change refused: missing or invalid bearer token");
+                let cert = crate::tls::peer::current_subject();
+                let client_cert = cert.as_deref();
+                tracing::info!(target: "kinserve::audit", token, client_cert, result = "refused", "registry change refused: missing or invalid bearer token");
                 Err(Error::Unauthenticated)
             }
         }
@@ -340,19 +342,22 @@ impl Service {
 
     /// One audit line per registry change (target `kinserve::audit`): what,
     /// which robot, the outcome, and who — whether a bearer token was
-    /// required and so presented (the token itself is never logged).
+    /// required and so presented (the token itself is never logged), and
+    /// the subject of the connection's TLS client certificate, if any.
     fn audit<T>(&self, action: &str, robot: &str, result: &Result<T>) {
         let who = if self.auth_required() {
             "bearer token"
         } else {
             "anyone (no API token configured)"
         };
+        let cert = crate::tls::peer::current_subject();
+        let client_cert = cert.as_deref();
         match result {
             Ok(_) => {
-                tracing::info!(target: "kinserve::audit", action, robot, who, result = "ok", "registry change")
+                tracing::info!(target: "kinserve::audit", action, robot, who, client_cert, result = "ok", "registry change")
             }
             Err(e) => {
-                tracing::info!(target: "kinserve::audit", action, robot, who, result = "refused", error = %e, "registry change refused")
+                tracing::info!(target: "kinserve::audit", action, robot, who, client_cert, result = "refused", error = %e, "registry change refused")
             }
         }
     }
@@ -531,6 +536,60 @@ impl Service {
         Ok(answers)
     }
 
+    /// Validates and solves a Cartesian path on this thread: each step under
+    /// [`ServiceLimits::ik_time_limit`], the whole path under
+    /// [`ServiceLimits::ik_batch_time_limit`] (then it stops with
+    /// `time_limit`), at most [`ServiceLimits::max_batch`] steps.
+    pub fn ik_path(&self, robot: &Robot, spec: &IkPathSpec) -> Result<IkPathAnswer> {
+        self.ik_path_cancellable(robot, spec, &AtomicBool::new(false))
+    }
+
+    fn ik_path_cancellable(
+        &self,
+        robot: &Robot,
+        spec: &IkPathSpec,
+        cancel: &AtomicBool,
+    ) -> Result<IkPathAnswer> {
+        if spec.waypoints.len() > self.limits.max_batch {
+            return Err(Error::TooLarge {
+                detail: format!(
+                    "a path holds at most {} waypoints, got {}",
+                    self.limits.max_batch,
+                    spec.waypoints.len()
+                ),
+                field: Some("waypoints".into()),
+            });
+        }
+        let path = robot.check_ik_path(spec, self.limits.max_batch)?;
+        let now = Instant::now();
+        let deadline = deadline_after(now, self.limits.ik_batch_time_limit);
+        let answer = path.solve_cancellable(self.limits.ik_time_limit, Some(deadline), cancel);
+        if cancelled(cancel) {
+            return Err(stopped());
+        }
+        let outcome = answer
+            .stop
+            .as_ref()
+            .map_or("complete", |s| s.reason.as_str());
+        metrics::counter!("kinserve_ik_paths_total", "outcome" => outcome).increment(1);
+        Ok(answer)
+    }
+
+    /// [`Service::ik_path`] on the compute pool; stops when the caller does.
+    pub async fn ik_path_on_pool(
+        self: &Arc<Self>,
+        client: ClientId,
+        robot: Arc<Entry>,
+        spec: IkPathSpec,
+    ) -> Result<IkPathAnswer> {
+        let this = Arc::clone(self);
+        self.pool
+            .run(client, move |cancel| {
+                this.ik_path_cancellable(&robot.robot, &spec, cancel)
+            })
+            .await
+    }
+
     fn targets_too_large(&self, count: usize) -> Error {
         Error::TooLarge {
             detail: format!(
@@ -639,6 +698,8 @@ pub enum StreamAnswer {
     },
     /// IK: the answer (converged; not converged is an error).
     Ik(IkAnswer),
+    /// A Cartesian path (stopped early is an answer, with its stop).
+    IkPath(IkPathAnswer),
 }
 
 /// One stream message, the same for the WebSocket and the gRPC stream.
@@ -656,6 +717,9 @@ impl Service {
         match op {
             StreamOp::Ik(spec) => Ok(StreamAnswer::Ik(
                 self.ik_on_pool(client, entry, *spec).await?,
+            )),
+            StreamOp::IkPath(spec) => Ok(StreamAnswer::IkPath(
+                self.ik_path_on_pool(client, entry, *spec).await?,
             )),
             StreamOp::Fk {
                 fk,

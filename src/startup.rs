@@ -30,6 +30,7 @@ pub struct App {
     config: ServeConfig,
     shutdown: CancellationToken,
     syncer: Option<Syncer>,
+    tls: Option<crate::tls::TlsServer>,
 }
 
 /// Triggers a graceful shutdown of a running [`App`].
@@ -51,6 +52,7 @@ impl App {
     /// binds both listeners.
     pub async fn build(config: ServeConfig) -> std::io::Result<App> {
         let limits = config.service_limits();
+        let tls = crate::tls::TlsServer::load(&config.tls).map_err(std::io::Error::other)?;
         let (store, syncer) = open_store(&config).await?;
         let registry = Registry::new(store).with_max_registered(config.max_robots);
         let token = api_token(config.api_token.as_deref())?;
@@ -83,6 +85,7 @@ impl App {
             config,
             shutdown: CancellationToken::new(),
             syncer,
+            tls,
         })
     }
 
@@ -127,11 +130,18 @@ impl App {
             http_addr,
             grpc_addr,
             syncer,
+            tls,
         } = self;
         // `shutdown`: the drain starts (not ready); `stop`: the listeners close.
         let stop = CancellationToken::new();
         if let Some(syncer) = syncer {
             tokio::spawn(syncer.run(applier(service.clone()), stop.clone()));
+        }
+        if let Some(tls) = &tls {
+            tokio::spawn(
+                tls.clone()
+                    .watch(config.tls.tls_reload_interval, stop.clone()),
+            );
         }
         let permits = FairBudget::new(
             config.max_concurrent_requests,
@@ -178,6 +188,7 @@ impl App {
                 draining: shutdown.clone(),
                 stop: stop.clone(),
             },
+            tls.as_ref().map(|t| t.grpc(config.header_timeout)),
         );
         let http_server = http_server::serve_http(
             http,
@@ -188,6 +199,7 @@ impl App {
                 linger_timeout: config.linger_timeout,
             },
             connections,
+            tls.as_ref().map(|t| t.rest(config.header_timeout)),
             stop.clone(),
         );
         service.set_ready(true);
@@ -274,6 +286,7 @@ async fn open_store(config: &ServeConfig) -> std::io::Result<(Box<dyn Store>, Op
     let settings = PgSettings {
         url: url.clone(),
         password_file: config.database_password_file.clone(),
+        ca_file: config.tls.database_ca_file.clone(),
         resync_interval: config.database_resync_interval,
     };
     let store = PgStore::connect(&settings)

@@ -110,6 +110,10 @@ pub const FAMILIES: &[(&str, &str)] = &[
         "Inverse-kinematics targets solved (REST, WebSocket, gRPC, single and batch), by converged (true or false).",
     ),
     (
+        "kinserve_ik_paths_total",
+        "Cartesian paths solved (REST, WebSocket, gRPC), by outcome (complete or the stop reason).",
+    ),
+    (
         "kinserve_poses_computed_total",
         "Poses computed, by robot (built-ins and the first registered names; others as `other`) and protocol.",
     ),

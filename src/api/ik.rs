@@ -7,7 +7,8 @@ use utoipa::ToSchema;
 
 use crate::api::pose::Pose;
 use crate::model::{
-    AngleUnit, IkAnswer, IkBranch, IkSolutionItem, IkSolverUsed, LengthUnit, Singularity,
+    AngleUnit, IkAnswer, IkBranch, IkPathAnswer, IkSolutionItem, IkSolverUsed, LengthUnit,
+    PathStop, Singularity,
 };
 
 /// One IK answer: the joints found (or the best attempt) and their errors.
@@ -96,4 +97,49 @@ pub struct IkBatchOutput {
     pub angle_unit: AngleUnit,
     /// One answer per target, in request order.
     pub results: Vec<IkItem>,
+}
+
+/// `POST /v1/robots/{name}/ik/path` response (and the WebSocket's
+/// `ik_path` reply): the joints of every step taken, start first; a path
+/// that stopped early is still a 200 with `stop` saying where and why.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"robot": "puma560", "length_unit": "m", "angle_unit": "rad",
+    "points": [[0.1, -0.4, 0.6, 0.2, 0.5, -0.3], [0.0987, -0.4108, 0.6203, 0.2008, 0.4894, -0.2983]],
+    "fraction": 1.0, "waypoints_reached": 1, "stop": null}))]
+pub struct IkPathOutput {
+    /// Robot name.
+    pub robot: String,
+    /// Length unit of the robot.
+    pub length_unit: LengthUnit,
+    /// Unit of the revolute values in `points`.
+    pub angle_unit: AngleUnit,
+    /// Joint values per step: the start, then each step taken.
+    pub points: Vec<Vec<f64>>,
+    /// Steps taken ÷ steps planned (1 when complete).
+    pub fraction: f64,
+    /// Waypoints fully reached.
+    pub waypoints_reached: usize,
+    /// `null` when complete; else the step not taken, its waypoint and why
+    /// (`unreachable`, `joint_limits`, `joint_jump`, `singularity`, `time_limit`).
+    pub stop: Option<PathStop>,
+}
+
+impl IkPathOutput {
+    /// The answer with its robot's names and units.
+    pub fn new(
+        robot: &str,
+        length_unit: LengthUnit,
+        angle_unit: AngleUnit,
+        a: IkPathAnswer,
+    ) -> Self {
+        IkPathOutput {
+            robot: robot.to_string(),
+            length_unit,
+            angle_unit,
+            points: a.points,
+            fraction: a.fraction,
+            waypoints_reached: a.waypoints_reached,
+            stop: a.stop,
+        }
+    }
 }

@@ -17,6 +17,12 @@
 //!   long (HTTP/2 flow control stops a stream without blocking any write) is
 //!   dropped (see `api::rest::conn`).
 //! - **Lingering close**, bounded by time (see [`Lingering`]).
+//! - **TLS** (with `--tls-cert`): the handshake runs in the connection's task,
+//!   holding its connection slot, and must finish within the header timeout;
+//!   then the request heads have their own header timeout as above. ALPN
+//!   offers `h2` and `http/1.1`; either way the connection is served as
+//!   before (WebSockets over both). The client certificate's subject, if
+//!   any, is known to each request (`crate::tls::peer`).
 
 use std::future::Future;
 use std::pin::Pin;
@@ -60,6 +66,7 @@ pub async fn serve_http(
     router: Router,
     settings: HttpServerSettings,
     connections: crate::api::budget::ConnectionSlots,
+    tls: Option<crate::tls::Listener>,
     stop: CancellationToken,
 ) -> std::io::Result<()> {
     let settings = HttpServerSettings {
@@ -100,6 +107,7 @@ pub async fn serve_http(
             _open: open.clone(),
             _slot: slot,
             peer: crate::api::rest::PeerAddr(peer),
+            tls: tls.clone(),
         };
         tokio::spawn(conn.serve(tcp));
     }
@@ -135,10 +143,20 @@ struct Conn {
     _slot: tokio::sync::OwnedSemaphorePermit,
     /// Who is on the other end (for the per-client shares).
     peer: crate::api::rest::PeerAddr,
+    /// The listener's TLS, if it serves TLS.
+    tls: Option<crate::tls::Listener>,
 }
 
 impl Conn {
     async fn serve(self, tcp: TcpStream) {
+        let io = tokio::select! {
+            io = crate::tls::server::accept(self.tls.as_ref(), tcp) => match io {
+                Ok(io) => io,
+                Err(_) => return,
+            },
+            _ = self.stop.cancelled() => return,
+        };
+        let client_cert = io.client_cert();
         let activity = ConnActivity::new();
         let router = self.router.clone();
         let seen = activity.clone();
@@ -151,16 +169,17 @@ impl Conn {
             req.extensions_mut().insert(seen.clone());
             req.extensions_mut().insert(streams.clone());
             let router = router.clone();
-            async move {
+            let cert = client_cert.clone();
+            crate::tls::peer::scope(cert, async move {
                 let resp = router
                     .oneshot(req)
                     .await
                     .map(crate::api::rest::hide_connect);
                 drop(busy);
                 resp
-            }
+            })
         });
-        let io = Lingering::new(tcp, self.settings);
+        let io = Lingering::new(io, self.settings);
         let conn = self
             .builder
             .serve_connection_with_upgrades(TokioIo::new(io), TowerToHyperService::new(service));
@@ -204,8 +223,8 @@ impl Conn {
 /// `lingering_time` and `lingering_timeout`), whatever the byte count.
 /// Connections that never sent anything (e.g. closed for a header timeout)
 /// and those that timed out writing close at once.
-pub struct Lingering {
-    tcp: Option<TcpStream>,
+pub struct Lingering<IO: Io = TcpStream> {
+    tcp: Option<IO>,
     wrote: bool,
     timed_out: bool,
     write_timeout: Duration,
@@ -214,8 +233,17 @@ pub struct Lingering {
     stalling: bool,
 }
 
-impl Lingering {
-    fn new(tcp: TcpStream, settings: HttpServerSettings) -> Lingering {
+fn closed() -> std::io::Error {
+    std::io::Error::from(std::io::ErrorKind::NotConnected)
+}
+
+/// What a [`Lingering`] connection runs over: TCP, or TLS over TCP.
+pub trait Io: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static {}
+
+impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static> Io for T {}
+
+impl<IO: Io> Lingering<IO> {
+    fn new(tcp: IO, settings: HttpServerSettings) -> Lingering<IO> {
         Lingering {
             tcp: Some(tcp),
             wrote: false,
@@ -227,19 +255,15 @@ impl Lingering {
         }
     }
 
-    fn closed() -> std::io::Error {
-        std::io::Error::from(std::io::ErrorKind::NotConnected)
-    }
-
     /// Runs one write; a write that stays pending for the write timeout fails.
     fn write_with<T>(
         &mut self,
         cx: &mut Context<'_>,
-        write: impl FnOnce(Pin<&mut TcpStream>, &mut Context<'_>) -> Poll<std::io::Result<T>>,
+        write: impl FnOnce(Pin<&mut IO>, &mut Context<'_>) -> Poll<std::io::Result<T>>,
     ) -> Poll<std::io::Result<T>> {
         self.wrote = true;
         let Some(tcp) = self.tcp.as_mut() else {
-            return Poll::Ready(Err(Lingering::closed()));
+            return Poll::Ready(Err(closed()));
         };
         if let Poll::Ready(r) = write(Pin::new(tcp), cx) {
             self.stalling = false;
@@ -263,7 +287,7 @@ impl Lingering {
     }
 }
 
-impl tokio::io::AsyncRead for Lingering {
+impl<IO: Io> tokio::io::AsyncRead for Lingering<IO> {
     fn poll_read(
         self: Pin<&mut Self>,
         cx: &mut Context<'_>,
@@ -271,12 +295,12 @@ impl tokio::io::AsyncRead for Lingering {
     ) -> Poll<std::io::Result<()>> {
         match self.get_mut().tcp.as_mut() {
             Some(tcp) => Pin::new(tcp).poll_read(cx, buf),
-            None => Poll::Ready(Err(Lingering::closed())),
+            None => Poll::Ready(Err(closed())),
         }
     }
 }
 
-impl tokio::io::AsyncWrite for Lingering {
+impl<IO: Io> tokio::io::AsyncWrite for Lingering<IO> {
     fn poll_write(
         self: Pin<&mut Self>,
         cx: &mut Context<'_>,
@@ -314,7 +338,7 @@ impl tokio::io::AsyncWrite for Lingering {
     }
 }
 
-impl Drop for Lingering {
+impl<IO: Io> Drop for Lingering<IO> {
     fn drop(&mut self) {
         let Some(tcp) = self.tcp.take() else {
             return;
@@ -331,7 +355,7 @@ impl Drop for Lingering {
 
 /// Shuts the write side of `tcp` and discards what the client still sends,
 /// for at most `limit` in all and [`LINGER_IDLE`] between two reads.
-async fn linger(mut tcp: TcpStream, limit: Duration) {
+async fn linger<IO: Io>(mut tcp: IO, limit: Duration) {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let _ = tcp.shutdown().await;
     let mut buf = vec![0u8; 16 << 10];

@@ -1,9 +1,13 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
 mod browser;
 mod browser_ik;
+mod browser_ik_tools;
+mod browser_link;
+mod clients;
 mod closed_form;
 mod contract;
 mod crash;
+mod docs_examples;
 mod errors;
 mod etags;
 mod generated_clients;
@@ -22,6 +26,9 @@ mod replicas_bench;
 mod replicas_outage;
 mod rest;
 mod secure_defaults;
+mod tls;
+mod tls_postgres;
+mod tls_process;
 mod traces;
 mod urdf_import;
 mod ws;

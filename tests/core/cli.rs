@@ -446,3 +446,182 @@ fn serve_refuses_otlp_endpoints_it_cannot_export_to_and_ratios_outside_zero_to_o
     let err = String::from_utf8_lossy(&ratio.stderr);
     assert!(err.contains("--trace-sample-ratio"), "{err}");
 }
+
+/// A JSON array as comma-separated text (a CLI list argument).
+fn csv(v: &serde_json::Value) -> String {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+#[test]
+fn ik_all_prints_every_closed_form_solution_and_each_reaches_the_pose() {
+    let (ok, fk, err) = run_json(&[
+        "fk",
+        "--robot",
+        "puma560",
+        "--joints",
+        "20,-30,45,10,50,-20",
+        "--deg",
+    ]);
+    assert!(ok, "{err}");
+    let p = &fk["pose"];
+    let q = &p["quaternion"];
+    let quaternion = format!("{},{},{},{}", q["w"], q["x"], q["y"], q["z"]);
+    let (ok, ik, err) = run_json(&[
+        "ik",
+        "--robot",
+        "puma560",
+        "--position",
+        &csv(&p["position"]),
+        "--quaternion",
+        &quaternion,
+        "--deg",
+        "--all",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(ik["solver"], "analytic");
+    let sols = ik["solutions"].as_array().expect("solutions");
+    assert!(sols.len() >= 2, "{ik}");
+    for s in sols {
+        let (ok, again, err) = run_json(&[
+            "fk",
+            "--robot",
+            "puma560",
+            "--joints",
+            &csv(&s["joints"]),
+            "--deg",
+        ]);
+        assert!(ok, "within limits: {err}");
+        for i in 0..3 {
+            let (a, b) = (
+                again["pose"]["position"][i].as_f64().unwrap(),
+                p["position"][i].as_f64().unwrap(),
+            );
+            assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
+        }
+    }
+    // A solver the arm does not have is refused, naming the field.
+    let out = kinserve()
+        .args([
+            "ik",
+            "--robot",
+            "panda",
+            "--position",
+            "0.3,0,0.5",
+            "--quaternion",
+            "1,0,0,0",
+            "--solver",
+            "analytic",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("solver"));
+}
+
+#[test]
+fn ik_path_prints_the_steps_and_exits_1_when_it_stops() {
+    let (ok, fk, err) = run_json(&[
+        "fk",
+        "--robot",
+        "ur5e",
+        "--joints",
+        "0.4,-1.2,1.3,-0.7,1.2,0.3",
+    ]);
+    assert!(ok, "{err}");
+    let p = &fk["pose"];
+    let q = &p["quaternion"];
+    let pos: Vec<f64> = p["position"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let up = format!(
+        "{},{},{},{},{},{},{}",
+        pos[0],
+        pos[1],
+        pos[2] + 0.03,
+        q["w"],
+        q["x"],
+        q["y"],
+        q["z"]
+    );
+    let (ok, path, err) = run_json(&[
+        "ik-path",
+        "--robot",
+        "ur5e",
+        "--start",
+        "0.4,-1.2,1.3,-0.7,1.2,0.3",
+        "--waypoint",
+        &up,
+        "--max-step-length",
+        "0.01",
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        (path["fraction"].as_f64(), path["stop"].is_null()),
+        (Some(1.0), true)
+    );
+    assert_eq!(
+        path["points"].as_array().unwrap().len(),
+        4,
+        "start + 3 steps of 1 cm"
+    );
+    let far = format!("3,0,0,{},{},{},{}", q["w"], q["x"], q["y"], q["z"]);
+    let (ok, path, err) = run_json(&[
+        "ik-path",
+        "--robot",
+        "ur5e",
+        "--start",
+        "0.4,-1.2,1.3,-0.7,1.2,0.3",
+        "--waypoint",
+        &far,
+    ]);
+    assert!(!ok && err.contains("stopped at step"), "{err}");
+    assert!(path["stop"]["reason"].is_string() && path["fraction"].as_f64().unwrap() < 1.0);
+}
+
+/// Matrices print one row per line (and other lists of numbers on one line),
+/// the JSON unchanged: `fk`, `jacobian` and `link-transforms` alike.
+#[test]
+fn matrices_print_one_row_per_line() {
+    let out = kinserve()
+        .args(["fk", "--robot", "puma560", "--joints", "0,0,0,0,0,0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let lines: Vec<&str> = text.lines().map(str::trim).collect();
+    for row in [
+        "[1.0, -0.0, 0.0, 0.4521],",
+        "[0.0, 1.0, 0.0, -0.15005],",
+        "[0.0, -0.0, 1.0, 1.10363],",
+        "[0.0, 0.0, 0.0, 1.0]",
+    ] {
+        assert!(
+            lines.contains(&row),
+            "row {row} on a line of its own:\n{text}"
+        );
+    }
+    assert!(
+        lines.contains(&"\"position\": [0.4521, -0.15005, 1.10363],"),
+        "{text}"
+    );
+    let printed = stdout_json(&out);
+    assert_eq!(printed["pose"]["matrix"][0][3], 0.4521, "still JSON");
+    let out = kinserve()
+        .args(["jacobian", "--robot", "planar_2dof", "--joints", "0,0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout.clone()).unwrap();
+    let rows = text
+        .lines()
+        .filter(|l| l.trim().starts_with("[0.0, "))
+        .count();
+    assert!(rows >= 6, "six Jacobian rows, one per line:\n{text}");
+    stdout_json(&out);
+}

@@ -5,9 +5,9 @@
 //! [`crate::pb`].
 
 use kinserve_model::{
-    AngleUnit, FieldViolation, IkAnswer, IkBatchSpec, IkBranch, IkSolutionItem, IkSolutionsMode,
-    IkSolverChoice, IkSolverUsed, IkSpec, IkTargetSpec, ModelError, QuaternionSpec, Result,
-    Singularity,
+    AngleUnit, FieldViolation, IkAnswer, IkBatchSpec, IkBranch, IkPathAnswer, IkPathSpec,
+    IkSolutionItem, IkSolutionsMode, IkSolverChoice, IkSolverUsed, IkSpec, IkTargetSpec,
+    ModelError, PathStopReason, QuaternionSpec, Result, Singularity,
 };
 
 use crate::pb;
@@ -24,6 +24,13 @@ impl TryFrom<pb::InverseKinematicsBatchRequest> for IkBatchSpec {
     type Error = ModelError;
     fn try_from(r: pb::InverseKinematicsBatchRequest) -> Result<IkBatchSpec> {
         ik_batch_spec_from_pb(r)
+    }
+}
+
+impl TryFrom<pb::InverseKinematicsPathRequest> for IkPathSpec {
+    type Error = ModelError;
+    fn try_from(r: pb::InverseKinematicsPathRequest) -> Result<IkPathSpec> {
+        ik_path_spec_from_pb(r)
     }
 }
 
@@ -216,4 +223,64 @@ pub fn ik_batch_spec_from_pb(r: pb::InverseKinematicsBatchRequest) -> Result<IkB
         solutions: solutions_from_pb(r.solutions)?,
         max_solutions: r.max_solutions,
     })
+}
+
+/// `InverseKinematicsPathRequest` → the REST body it means.
+pub fn ik_path_spec_from_pb(r: pb::InverseKinematicsPathRequest) -> Result<IkPathSpec> {
+    let mut v = Vec::new();
+    let waypoints = r
+        .waypoints
+        .into_iter()
+        .enumerate()
+        .map(|(i, t)| target_from_pb(Some(t), &format!("waypoints[{i}]"), &mut v))
+        .collect();
+    if !v.is_empty() {
+        return Err(ModelError::invalid(v));
+    }
+    Ok(IkPathSpec {
+        start: r.start.map(|s| s.joints).unwrap_or_default(),
+        waypoints,
+        angle_unit: angle_unit_from_pb(r.angle_unit, "angle_unit")?,
+        position_only: r.position_only,
+        max_step_length: r.max_step_length,
+        max_step_angle: r.max_step_angle,
+        max_joint_step: r.max_joint_step,
+        tolerance: r.tolerance,
+        solver: solver_from_pb(r.solver)?,
+        max_iterations: r.max_iterations,
+        restarts: r.restarts,
+    })
+}
+
+/// A path answer's points, fraction and stop as the response's fields.
+pub fn ik_path_to_pb(
+    a: &IkPathAnswer,
+    robot: String,
+    length_unit: i32,
+    angle_unit: AngleUnit,
+) -> pb::InverseKinematicsPathResponse {
+    pb::InverseKinematicsPathResponse {
+        robot,
+        length_unit,
+        angle_unit: angle_unit_to_pb(angle_unit) as i32,
+        points: a
+            .points
+            .iter()
+            .map(|q| pb::JointConfiguration { joints: q.clone() })
+            .collect(),
+        fraction: a.fraction,
+        waypoints_reached: a.waypoints_reached as u32,
+        stop: a.stop.as_ref().map(|s| pb::PathStop {
+            step: s.step as u32,
+            waypoint: s.waypoint as u32,
+            reason: match s.reason {
+                PathStopReason::Unreachable => pb::PathStopReason::Unreachable,
+                PathStopReason::JointLimits => pb::PathStopReason::JointLimits,
+                PathStopReason::JointJump => pb::PathStopReason::JointJump,
+                PathStopReason::Singularity => pb::PathStopReason::Singularity,
+                PathStopReason::TimeLimit => pb::PathStopReason::TimeLimit,
+            } as i32,
+            detail: s.detail.clone(),
+        }),
+    }
 }

@@ -42,7 +42,7 @@ mod urdf;
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
 pub use ik::angle_unit_to_pb;
-pub use ik::{ik_batch_spec_from_pb, ik_spec_from_pb};
+pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};

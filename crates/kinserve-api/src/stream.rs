@@ -2,7 +2,7 @@
 //! for (the same operation a WebSocket message converts into). Depends on the
 //! model, [`crate::fk`], [`crate::jacobian`] and [`crate::pb`].
 
-use kinserve_model::{FkSpec, IkSpec, ModelError, Result, StreamOp};
+use kinserve_model::{FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
 
 use crate::fk::FkOptionsExt;
 use crate::jacobian::frame_from_pb;
@@ -13,6 +13,21 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
     /// FK (with the Jacobian and link transforms when asked for) or IK; `ik`
     /// with joints, or an `ik.robot` other than the message's, is refused.
     fn try_from(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
+        if let Some(path) = msg.ik_path {
+            if !msg.joints.is_empty() || msg.ik.is_some() {
+                return Err(ModelError::invalid_field(
+                    "joints",
+                    "give joints (FK), ik or ik_path, one of them",
+                ));
+            }
+            if !path.robot.is_empty() && path.robot != msg.robot {
+                return Err(ModelError::invalid_field(
+                    "ik_path.robot",
+                    "must be empty or the message's robot",
+                ));
+            }
+            return Ok(StreamOp::IkPath(Box::new(IkPathSpec::try_from(path)?)));
+        }
         if let Some(ik) = msg.ik {
             if !msg.joints.is_empty() {
                 return Err(ModelError::invalid_field(

@@ -185,12 +185,23 @@ pub struct IkBatch<'a> {
 
 /// How a validated request is solved.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Mode {
+pub(crate) struct Mode {
     solver: IkSolverChoice,
     /// `solutions: "all"`.
     all: bool,
     /// `max_solutions`.
     max: usize,
+}
+
+impl Mode {
+    /// One answer from `solver`.
+    pub(crate) fn best(solver: IkSolverChoice) -> Mode {
+        Mode {
+            solver,
+            all: false,
+            max: 1,
+        }
+    }
 }
 
 /// The answer to one target, in the request's units.
@@ -223,17 +234,17 @@ pub struct IkAnswer {
     pub truncated: bool,
 }
 
-/// The shared options of single and batch requests, as written.
-struct OptionFields<'a> {
-    seed: Option<&'a [f64]>,
-    angle_unit: AngleUnit,
-    position_only: bool,
-    tolerance: Option<f64>,
-    max_iterations: Option<u32>,
-    restarts: Option<u32>,
-    solver: IkSolverChoice,
-    solutions: IkSolutionsMode,
-    max_solutions: Option<u32>,
+/// The shared options of single, batch and path requests, as written.
+pub(crate) struct OptionFields<'a> {
+    pub seed: Option<&'a [f64]>,
+    pub angle_unit: AngleUnit,
+    pub position_only: bool,
+    pub tolerance: Option<f64>,
+    pub max_iterations: Option<u32>,
+    pub restarts: Option<u32>,
+    pub solver: IkSolverChoice,
+    pub solutions: IkSolutionsMode,
+    pub max_solutions: Option<u32>,
 }
 
 impl Robot {
@@ -324,7 +335,7 @@ impl Robot {
     }
 
     /// Seed (in internal units) and solver options, or violations.
-    fn check_options(
+    pub(crate) fn check_options(
         &self,
         o: &OptionFields<'_>,
         v: &mut Vec<FieldViolation>,
@@ -374,7 +385,7 @@ impl Robot {
 
     /// The solver and solution count asked for, or violations naming
     /// `solver`, `solutions` or `max_solutions`.
-    fn check_mode(&self, o: &OptionFields<'_>, v: &mut Vec<FieldViolation>) -> Mode {
+    pub(crate) fn check_mode(&self, o: &OptionFields<'_>, v: &mut Vec<FieldViolation>) -> Mode {
         let all = o.solutions == IkSolutionsMode::All;
         let max = o.max_solutions.unwrap_or(IK_DEFAULT_MAX_SOLUTIONS);
         if !(1..=IK_MAX_SOLUTIONS).contains(&max) {
@@ -492,7 +503,7 @@ impl Robot {
     /// the arm allow it, else (or when it finds nothing and the solver was
     /// not forced) numerically. Also the converged joints in internal units.
     #[allow(clippy::too_many_arguments)]
-    fn solve_target(
+    pub(crate) fn solve_target(
         &self,
         solver: &IkSolver<'_>,
         t: &IkTarget,
@@ -523,7 +534,7 @@ impl Robot {
         (self.answer(s, t, unit, mode, &reference), q)
     }
 
-    fn solver(&self) -> IkSolver<'_> {
+    pub(crate) fn solver(&self) -> IkSolver<'_> {
         let limits: Vec<Option<(f64, f64)>> = self.joints().iter().map(|j| j.limits).collect();
         IkSolver::new(self.chain(), &limits)
     }
@@ -607,7 +618,7 @@ impl IkBatchSpec {
 }
 
 /// Validates one target under `field` (`target`, `targets[3]`).
-fn check_target(
+pub(crate) fn check_target(
     t: &IkTargetSpec,
     position_only: bool,
     field: &str,

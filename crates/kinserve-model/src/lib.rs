@@ -22,6 +22,7 @@ mod base_tool;
 mod closed_form;
 mod error;
 mod ik;
+mod ik_path;
 mod ik_solutions;
 mod joints;
 mod json;
@@ -39,6 +40,10 @@ pub use error::{FieldViolation, ModelError, Result, summary};
 pub use ik::{
     IK_MAX_ITERATIONS, IK_MAX_RESTARTS, IK_TOLERANCE_RANGE, IkAnswer, IkBatch, IkBatchSpec,
     IkRequest, IkSpec, IkTarget, IkTargetSpec,
+};
+pub use ik_path::{
+    IkPathAnswer, IkPathRequest, IkPathSpec, PATH_DEFAULT_JOINT_STEP, PATH_DEFAULT_STEP_ANGLE,
+    PathStop, PathStopReason,
 };
 pub use ik_solutions::{
     IK_DEFAULT_MAX_SOLUTIONS, IK_MAX_BATCH_SOLUTIONS, IK_MAX_SOLUTIONS, IkBranch, IkSolutionItem,

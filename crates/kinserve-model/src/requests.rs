@@ -15,7 +15,7 @@ use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
 use crate::joints::JointVector;
-use crate::{FkOptions, IkSpec, PoseFormat, ReferenceFrame};
+use crate::{FkOptions, IkPathSpec, IkSpec, PoseFormat, ReferenceFrame};
 
 /// Many joint configurations stored back to back: `values` holds them all and
 /// `lens[i]` is the length of configuration `i` (one allocation per request,
@@ -169,6 +169,8 @@ pub enum StreamOp {
     },
     /// Inverse kinematics.
     Ik(Box<IkSpec>),
+    /// A Cartesian path.
+    IkPath(Box<IkPathSpec>),
 }
 
 /// One DH row's link matrix and its inverse (see [`JointVector::link_transforms`]).

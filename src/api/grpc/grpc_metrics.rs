@@ -127,6 +127,7 @@ where
                         code,
                         duration_ms = start.elapsed().as_secs_f64() * 1e3,
                         trace_id = trace_id.map(tracing::field::display),
+                        client_cert = crate::tls::peer::current_subject().as_deref(),
                         "call"
                     );
                 }

@@ -11,8 +11,8 @@ use super::stream::{End, FkStream, close_if_stuck};
 use super::{GrpcService, authorization, pb, streams};
 use crate::error::Error;
 use crate::model::{
-    FkBatchSpec, FkSpec, IkBatchSpec, IkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
-    RobotSpec, UrdfImport,
+    FkBatchSpec, FkSpec, IkBatchSpec, IkPathSpec, IkSpec, JacobianBatchSpec, JacobianSpec,
+    LinkTransformsSpec, RobotSpec, UrdfImport,
 };
 use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::service::FkAnswer;
@@ -344,6 +344,25 @@ impl KinematicsService for GrpcService {
                 .map(pb::InverseKinematicsResult::from)
                 .collect(),
         }))
+    }
+
+    async fn inverse_kinematics_path(
+        &self,
+        req: Request<pb::InverseKinematicsPathRequest>,
+    ) -> Result<Response<pb::InverseKinematicsPathResponse>, Status> {
+        let (client, _permit) = self.admit(&req)?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(&req.robot, "robot")?;
+        let (robot, length_unit) = names(&entry);
+        let spec = IkPathSpec::try_from(req).map_err(Error::from)?;
+        let angle_unit = spec.angle_unit;
+        let answer = self.service.ik_path_on_pool(client, entry, spec).await?;
+        Ok(Response::new(kinserve_api::ik_path_to_pb(
+            &answer,
+            robot,
+            length_unit,
+            angle_unit,
+        )))
     }
 
     async fn link_transforms(

@@ -64,6 +64,7 @@ pub async fn serve(
     settings: GrpcSettings,
     budgets: Budgets,
     lifecycle: Lifecycle,
+    tls: Option<crate::tls::Listener>,
 ) -> std::io::Result<()> {
     let shutdown = lifecycle.stop;
     let (health, health_service) = tonic_health::server::health_reporter();
@@ -115,7 +116,7 @@ pub async fn serve(
     let kin = oversize::WireErrorStatuses(kin);
     // Accepted sockets get TCP_NODELAY (tonic's own flag applies only to
     // listeners it binds) and their own count of open streams.
-    let incoming = streams::incoming(listener, connections);
+    let incoming = streams::incoming(listener, connections, tls);
     let health_on_stop = health.clone();
     let grpc_metrics = grpc_metrics::GrpcMetricsLayer::new(
         access_log,
@@ -126,7 +127,13 @@ pub async fn serve(
             tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
         ],
     );
+    // Each call runs with its connection's client certificate known (for the logs).
+    let client_cert = crate::tls::peer::ScopeLayer::new(|ext| {
+        ext.get::<streams::GrpcConnInfo>()
+            .and_then(|c| c.client_cert.clone())
+    });
     tonic::transport::Server::builder()
+        .layer(client_cert)
         .layer(crate::telemetry::spans::GrpcTraceLayer)
         .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(

@@ -15,7 +15,7 @@ use tonic::{Status, Streaming};
 use super::{GrpcService, oversize, pb, status, streams};
 use crate::compute::ClientId;
 use crate::error::Error;
-use crate::model::StreamOp;
+use crate::model::{AngleUnit, StreamOp};
 use crate::service::StreamAnswer;
 use crate::telemetry::Protocol;
 use kinserve_api::{packed_to_pb, pose_to_pb};
@@ -59,19 +59,33 @@ impl GrpcService {
         let entry = self.service.robot_at(&msg.robot, "robot")?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
+        // A path answer names its units like InverseKinematicsPath's.
+        let path_units = match &op {
+            StreamOp::IkPath(p) => (entry.robot.name().to_string(), p.angle_unit),
+            _ => (String::new(), AngleUnit::Rad),
+        };
         let answer = self
             .service
             .stream_step(entry, op, Protocol::Grpc, client)
             .await?;
-        Ok(stream_response(answer, unit))
+        Ok(stream_response(answer, unit, path_units))
     }
 }
 
 /// A stream answer as its message (Pose messages for `full`, PackedPoses for
-/// a compact `pose_format`).
-fn stream_response(answer: StreamAnswer, unit: i32) -> pb::StreamForwardKinematicsResponse {
+/// a compact `pose_format`; a path as InverseKinematicsPath answers it).
+fn stream_response(
+    answer: StreamAnswer,
+    unit: i32,
+    (robot, angle_unit): (String, AngleUnit),
+) -> pb::StreamForwardKinematicsResponse {
     use pb::stream_forward_kinematics_response::Result as Answer;
     match answer {
+        StreamAnswer::IkPath(a) => pb::StreamForwardKinematicsResponse {
+            length_unit: unit,
+            ik_path: Some(kinserve_api::ik_path_to_pb(&a, robot, unit, angle_unit)),
+            ..Default::default()
+        },
         StreamAnswer::Ik(a) => {
             let result = pb::InverseKinematicsResult::from(&a);
             pb::StreamForwardKinematicsResponse {
@@ -108,6 +122,7 @@ fn stream_response(answer: StreamAnswer, unit: i32) -> pb::StreamForwardKinemati
                 frames,
                 jacobian: jacobian.map(|j| Box::new(pb::JacobianResult::from(&j))),
                 ik: None,
+                ik_path: None,
                 packed_frames,
                 link_transforms: link_transforms
                     .unwrap_or_default()
@@ -134,15 +149,22 @@ impl GrpcService {
     ) -> End {
         let idle = self.settings.stream_idle_timeout;
         let idle_status = || {
-            Status::deadline_exceeded(format!(
-                "stream idle timeout: no message from the client and no reply taken for {idle:?}"
-            ))
+            Status::from(Error::RequestTimeout {
+                detail: format!(
+                    "stream idle timeout: no message from the client and no reply taken for {idle:?}"
+                ),
+            })
+        };
+        let closing = || {
+            Status::from(Error::Unavailable {
+                detail: "server shutting down".into(),
+            })
         };
         // Until the first message, the (shorter) first-message timeout.
         let mut wait = idle.min(self.settings.stream_first_message_timeout);
         loop {
             if self.shutdown.is_cancelled() {
-                return End::Closed(Status::unavailable("server shutting down"));
+                return End::Closed(closing());
             }
             // A message already received is taken at once; only when none is
             // there does the task wait (shutdown, cancel, idle timeout). One
@@ -151,7 +173,7 @@ impl GrpcService {
             let next = match ready {
                 Some(r) => Ok(r),
                 None => tokio::select! {
-                    _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                    _ = self.shutdown.cancelled() => return End::Closed(closing()),
                     _ = replies.closed() => return End::Quiet, // client cancelled
                     r = tokio::time::timeout(wait, inbound.message()) => r,
                 },
@@ -180,7 +202,7 @@ impl GrpcService {
                 Err(Some(resp)) => resp,
             };
             let sent = tokio::select! {
-                _ = self.shutdown.cancelled() => return End::Closed(Status::unavailable("server shutting down")),
+                _ = self.shutdown.cancelled() => return End::Closed(closing()),
                 r = tokio::time::timeout(idle, replies.send(resp)) => r,
             };
             match sent {

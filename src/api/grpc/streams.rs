@@ -10,6 +10,10 @@
 //! idleness while blocked that way has [`STUCK_GRACE`] to go; if its
 //! response is still not done then, its connection is closed, which ends
 //! every stream on it and frees what they hold.
+//!
+//! With TLS, each accepted connection's handshake runs in its own task
+//! (holding its connection slot, bounded by the header timeout) and the
+//! server is handed the connections whose handshake succeeded.
 
 use std::future::Future as _;
 use std::pin::Pin;
@@ -18,6 +22,8 @@ use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::TcpStream;
+
+use crate::tls::{ClientCert, MaybeTls};
 
 use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
 use tokio_stream::Stream;
@@ -35,6 +41,18 @@ use crate::api::budget::{ConnectionSlots, ConnectionStreams, accept_error};
 pub fn incoming(
     listener: tokio::net::TcpListener,
     connections: ConnectionSlots,
+    tls: Option<crate::tls::Listener>,
+) -> impl Stream<Item = std::io::Result<GrpcConn>> {
+    use futures_util::future::Either;
+    match tls {
+        None => Either::Left(plain(listener, connections)),
+        Some(tls) => Either::Right(handshaken(listener, connections, tls)),
+    }
+}
+
+fn plain(
+    listener: tokio::net::TcpListener,
+    connections: ConnectionSlots,
 ) -> impl Stream<Item = std::io::Result<GrpcConn>> {
     futures_util::stream::unfold(
         (listener, connections),
@@ -43,13 +61,60 @@ pub fn incoming(
                 match listener.accept().await {
                     Ok((tcp, _peer)) => {
                         let slot = connections.wait().await?;
-                        return Some((Ok(GrpcConn::new(tcp, slot)), (listener, connections)));
+                        let _ = tcp.set_nodelay(true);
+                        let conn = GrpcConn::new(MaybeTls::Plain(tcp), slot);
+                        return Some((Ok(conn), (listener, connections)));
                     }
                     Err(e) => accept_error(e).await,
                 }
             }
         },
     )
+}
+
+/// Connections handed on at once while the server has not taken them yet.
+const HANDSHAKEN_QUEUE: usize = 16;
+
+/// The TLS connections of `listener`: one task accepts (slots as in
+/// [`incoming`]), each connection's handshake runs in its own task, and those
+/// that finish are handed on. The accepting task ends (closing the listener)
+/// once the server drops the stream.
+fn handshaken(
+    listener: tokio::net::TcpListener,
+    connections: ConnectionSlots,
+    tls: crate::tls::Listener,
+) -> impl Stream<Item = std::io::Result<GrpcConn>> {
+    use tokio_stream::StreamExt as _;
+    let (tx, rx) = mpsc::channel::<GrpcConn>(HANDSHAKEN_QUEUE);
+    tokio::spawn(async move {
+        loop {
+            let tcp = tokio::select! {
+                _ = tx.closed() => return,
+                r = listener.accept() => match r {
+                    Ok((tcp, _)) => tcp,
+                    Err(e) => {
+                        accept_error(e).await;
+                        continue;
+                    }
+                },
+            };
+            let slot = tokio::select! {
+                _ = tx.closed() => return,
+                slot = connections.wait() => match slot {
+                    Some(slot) => slot,
+                    None => return,
+                },
+            };
+            let (tx, tls) = (tx.clone(), tls.clone());
+            tokio::spawn(async move {
+                let _ = tcp.set_nodelay(true);
+                if let Ok(io) = crate::tls::server::accept(Some(&tls), tcp).await {
+                    let _ = tx.send(GrpcConn::new(io, slot)).await;
+                }
+            });
+        }
+    });
+    tokio_stream::wrappers::ReceiverStream::new(rx).map(Ok)
 }
 
 /// Replies of one stream queued for the client, beyond the one its task is
@@ -72,12 +137,14 @@ pub struct GrpcConnInfo {
     pub close: CancellationToken,
     /// The peer's address (for the per-client shares).
     pub peer: Option<std::net::IpAddr>,
+    /// The verified client certificate (TLS with client certificates).
+    pub client_cert: Option<ClientCert>,
 }
 
 /// An accepted gRPC connection: the TCP stream, the streams open on it, and
 /// a token that closes it (reads and writes fail once it is cancelled).
 pub struct GrpcConn {
-    tcp: TcpStream,
+    tcp: MaybeTls<TcpStream>,
     info: GrpcConnInfo,
     closed: Pin<Box<WaitForCancellationFutureOwned>>,
     /// Its slot of `--max-connections`, freed when the connection is dropped.
@@ -85,11 +152,11 @@ pub struct GrpcConn {
 }
 
 impl GrpcConn {
-    /// A newly accepted connection (TCP_NODELAY set) holding `slot`.
-    pub fn new(tcp: TcpStream, slot: OwnedSemaphorePermit) -> GrpcConn {
-        let _ = tcp.set_nodelay(true);
+    /// A newly accepted connection (TLS handshake done, if any) holding `slot`.
+    pub fn new(tcp: MaybeTls<TcpStream>, slot: OwnedSemaphorePermit) -> GrpcConn {
         let info = GrpcConnInfo {
-            peer: tcp.peer_addr().ok().map(|a| a.ip()),
+            peer: tcp.get_ref().peer_addr().ok().map(|a| a.ip()),
+            client_cert: tcp.client_cert(),
             ..GrpcConnInfo::default()
         };
         let closed = Box::pin(info.close.clone().cancelled_owned());

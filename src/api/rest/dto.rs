@@ -7,8 +7,8 @@ use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositio
 use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
 use crate::kinematics::Transform;
 use crate::model::{
-    AngleUnit, ConventionSpec, FkOptions, IkAnswer, IkBranch, IkSolutionItem, IkSolverUsed, IkSpec,
-    LengthUnit, ReferenceFrame, Singularity,
+    AngleUnit, ConventionSpec, FkOptions, IkAnswer, IkBranch, IkPathSpec, IkSolutionItem,
+    IkSolverUsed, IkSpec, LengthUnit, PathStop, ReferenceFrame, Singularity,
 };
 use crate::model::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
@@ -359,6 +359,9 @@ pub struct WsRequest {
     /// An IK request instead of FK (like the body of `POST /v1/robots/{name}/ik`).
     #[serde(default)]
     pub ik: Option<IkSpec>,
+    /// A Cartesian path instead of FK (like the body of `POST /v1/robots/{name}/ik/path`).
+    #[serde(default)]
+    pub ik_path: Option<IkPathSpec>,
     /// Also return each DH row's link matrix and its inverse (default false;
     /// as `POST …/link-transforms` answers them).
     #[serde(default)]
@@ -384,6 +387,15 @@ impl TryFrom<WsRequest> for StreamOp {
     /// `joints` and `ik`, or neither, is refused naming `joints`.
     fn try_from(r: WsRequest) -> Result<StreamOp, Self::Error> {
         use crate::model::ModelError;
+        if let Some(path) = r.ik_path {
+            if r.ik.is_some() || r.joints.is_some() {
+                return Err(ModelError::invalid_field(
+                    "joints",
+                    "give joints (FK), ik or ik_path, one of them",
+                ));
+            }
+            return Ok(StreamOp::IkPath(Box::new(path)));
+        }
         match (r.ik, r.joints) {
             (Some(_), Some(_)) => Err(ModelError::invalid_field(
                 "joints",
@@ -468,6 +480,9 @@ pub struct WsReply<'a> {
     /// For an IK request: the answer (as `POST …/ik` answers it, `pose` above).
     #[serde(flatten)]
     pub ik: Option<WsIk>,
+    /// For a Cartesian path: the answer (as `POST …/ik/path` answers it).
+    #[serde(flatten)]
+    pub ik_path: Option<WsIkPath>,
     /// With `"link_transforms": true`: each DH row's link matrix and its
     /// inverse (as `POST …/link-transforms` answers them).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -491,6 +506,7 @@ impl<'a> WsReply<'a> {
             frame_positions: None,
             jacobian: None,
             ik: None,
+            ik_path: None,
             link_transforms: None,
             error: None,
         }
@@ -580,6 +596,19 @@ pub struct LinkTransformsOutput {
     /// One per DH row in table order (fixed rows included; base and tool are
     /// not rows): `base · A₁ ⋯ Aₙ · tool` is the tool pose.
     pub link_transforms: Vec<LinkTransformItem>,
+}
+
+/// The path part of a WebSocket reply (see [`crate::api::ik::IkPathOutput`]).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WsIkPath {
+    /// Joint values per step: the start, then each step taken.
+    pub points: Vec<Vec<f64>>,
+    /// Steps taken ÷ steps planned.
+    pub fraction: f64,
+    /// Waypoints fully reached.
+    pub waypoints_reached: usize,
+    /// `null` when complete; else where and why it stopped.
+    pub stop: Option<PathStop>,
 }
 
 /// The IK part of a WebSocket reply (see [`crate::api::ik::IkItem`]).

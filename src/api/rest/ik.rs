@@ -8,8 +8,8 @@ use axum::extract::State;
 use super::AppState;
 use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
-use crate::api::ik::{IkBatchOutput, IkItem, IkOutput};
-use crate::model::{IkBatchSpec, IkSpec};
+use crate::api::ik::{IkBatchOutput, IkItem, IkOutput, IkPathOutput};
+use crate::model::{IkBatchSpec, IkPathSpec, IkSpec};
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -23,14 +23,15 @@ type ApiResult<T> = Result<T, ApiError>;
     responses(
         (status = 200, description = "Converged: the joints, their errors against the target and the pose they give", body = IkOutput,
             example = json!({"robot": "puma560", "length_unit": "m", "angle_unit": "deg",
-                "joints": [19.999999999800277, -29.99999999988741, 45.000000000011575, 9.999999999882096, 49.99999999966128, -19.9999999997149],
-                "converged": true, "position_error": 1.5098587065217456e-12, "orientation_error": 6.7977277891802485e-12, "iterations": 5,
-                "pose": {"matrix": [[0.4980868739048057, -0.34488317188420287, -0.79559101540605, 0.3161255029982524],
-                        [-0.06553301533922037, 0.8999065002559434, -0.43113073968072557, -0.04461960137726105],
-                        [0.8646472633070018, 0.2668780405881897, 0.4256303813257705, 0.878270798407736], [0.0, 0.0, 0.0, 1.0]],
-                    "position": [0.3161255029982524, -0.04461960137726105, 0.878270798407736],
-                    "quaternion": {"w": 0.8401820867357443, "x": 0.20769568623535004, "y": -0.4940114485073618, "z": 0.0831219092132478},
-                    "rpy": [0.5600493649364693, -1.0444478148338856, -0.1308180589175547]}})),
+                "joints": [19.99999999999998, -30.000000000000018, 44.99999999999997, 10.000000000000009, 50.00000000000005, -19.99999999999999],
+                "converged": true, "position_error": 6.206335383118183e-17, "orientation_error": 1.4946834900704541e-16, "iterations": 0,
+                "pose": {"matrix": [[0.4980868739040637, -0.34488317188776374, -0.7955910154049708, 0.3161255029988694],
+                        [-0.0655330153422936, 0.8999065002531891, -0.4311307396860072, -0.044619601375991164],
+                        [0.8646472633071962, 0.26687804059287484, 0.4256303813224379, 0.8782707984072009], [0.0, 0.0, 0.0, 1.0]],
+                    "position": [0.3161255029988694, -0.044619601375991164, 0.8782707984072009],
+                    "quaternion": {"w": 0.8401820867347284, "x": 0.20769568623856685, "y": -0.4940114485076959, "z": 0.0831219092134934},
+                    "rpy": [0.5600493649478945, -1.0444478148342726, -0.13081805892381246]},
+                "solver": "analytic", "branch": {"shoulder": 0, "elbow": 1, "wrist": 1}, "singular": []})),
         (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
                 "detail": "malformed input: target.position: invalid length 2, expected an array of length 3",
@@ -49,7 +50,8 @@ type ApiResult<T> = Result<T, ApiError>;
                             [0.09213797053250904, 0.3832999564212355, -0.9190167233481823, 0.16168835814823396], [0.0, 0.0, 0.0, 1.0]],
                         "position": [0.9288876399735971, 0.03909610533614434, 0.16168835814823396],
                         "quaternion": {"w": 0.1950673299498414, "x": 0.9794729502912679, "y": 0.011878607738731815, "z": 0.04940015295673227},
-                        "rpy": [2.746452676058684, -0.09226883719332134, 0.04273700734403348]}}})),
+                        "rpy": [2.746452676058684, -0.09226883719332134, 0.04273700734403348]},
+                    "solver": "numeric", "branch": null, "singular": []}})),
         (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
 pub async fn ik(
     State(state): State<AppState>,
@@ -82,13 +84,15 @@ pub async fn ik(
                  "pose": {"matrix": [[0.3345794784216446, -0.9423675358473999, 0.0, 0.4999999999746447],
                         [0.9423675358473999, 0.3345794784216446, 0.0, 0.2999999999794858], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
                     "position": [0.4999999999746447, 0.2999999999794858, 0.0],
-                    "quaternion": {"w": 0.8168780442702707, "x": 0.0, "y": 0.0, "z": 0.5768104201461497}, "rpy": [0.0, 0.0, 1.2296373715210576]}},
+                    "quaternion": {"w": 0.8168780442702707, "x": 0.0, "y": 0.0, "z": 0.5768104201461497}, "rpy": [0.0, 0.0, 1.2296373715210576]},
+                 "solver": "numeric", "branch": null, "singular": []},
                 {"joints": [0.0946322604796601, 1.1299924165992894], "converged": true, "position_error": 4.661523989577213e-11,
                  "orientation_error": null, "iterations": 3,
                  "pose": {"matrix": [[0.33929905565032625, -0.9406785587196067, 0.0, 0.4999999999642441],
                         [0.9406785587196067, 0.33929905565032625, 0.0, 0.3199999999700919], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
                     "position": [0.4999999999642441, 0.3199999999700919, 0.0],
-                    "quaternion": {"w": 0.818321164229035, "x": 0.0, "y": 0.0, "z": 0.574761230577391}, "rpy": [0.0, 0.0, 1.2246246770789495]}}]})),
+                    "quaternion": {"w": 0.818321164229035, "x": 0.0, "y": 0.0, "z": 0.574761230577391}, "rpy": [0.0, 0.0, 1.2246246770789495]},
+                 "solver": "numeric", "branch": null, "singular": []}]})),
         (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:kinserve:problem:malformed-request", "title": "Malformed request", "status": 400,
                 "detail": "malformed input: targets[0].matrix: invalid length 3, expected an array of length 4",
@@ -122,4 +126,44 @@ pub async fn ik_batch(
         angle_unit,
         results: answers.iter().map(IkItem::from).collect(),
     }))
+}
+
+/// A Cartesian path: from `start` through the waypoints along straight lines
+/// (positions linear, orientations slerped) in steps of at most
+/// `max_step_length` / `max_step_angle`, each solved by IK seeded with the
+/// previous step. Stops at the first step no solution within the limits
+/// reaches, that would move a joint more than `max_joint_step`, or that
+/// stands at a singularity: still a 200, `stop` says which step and why and
+/// `fraction` how much was achieved (MoveIt's `computeCartesianPath`).
+#[utoipa::path(post, path = "/v1/robots/{name}/ik/path", tag = "ik", request_body = IkPathSpec,
+    params(("name" = String, Path, description = "Robot name")),
+    responses(
+        (status = 200, description = "The joints of every step taken, start first; `stop` when it ended early", body = IkPathOutput),
+        (status = 400, description = "Malformed JSON, wrong types or unknown fields", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "More steps than the batch limit at this step size (`max_step_length`), more waypoints than the limit, or body over the size limit", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Not a JSON body", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Invalid request, with field paths such as `start[2]` or `waypoints[1].quaternion`", body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:kinserve:problem:invalid-input", "title": "Invalid input", "status": 422,
+                "detail": "invalid input: max_step_length: must be a number above 0 and at most 1000000000, got 0",
+                "errors": [{"field": "max_step_length", "message": "must be a number above 0 and at most 1000000000, got 0"}]})),
+        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
+pub async fn ik_path(
+    State(state): State<AppState>,
+    RobotName(name): RobotName,
+    Client(client): Client,
+    JsonBody(req): JsonBody<IkPathSpec>,
+) -> ApiResult<Json<IkPathOutput>> {
+    let entry = state.service.robot(&name)?;
+    let angle_unit = req.angle_unit;
+    let answer = state
+        .service
+        .ik_path_on_pool(client, entry.clone(), req)
+        .await?;
+    Ok(Json(IkPathOutput::new(
+        entry.robot.name(),
+        entry.robot.length_unit(),
+        angle_unit,
+        answer,
+    )))
 }

@@ -456,6 +456,7 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             duration_ms = start.elapsed().as_secs_f64() * 1e3,
             request_id = %request_id,
             trace_id = trace_id.map(tracing::field::display),
+            client_cert = crate::tls::peer::current_subject().as_deref(),
             "request"
         );
     }

@@ -41,6 +41,16 @@ const FILES: &[(&str, &str, &str)] = &[
         include_str!("playground/closedform.js"),
     ),
     (
+        "ghosts.js",
+        "text/javascript; charset=utf-8",
+        include_str!("playground/ghosts.js"),
+    ),
+    (
+        "path.js",
+        "text/javascript; charset=utf-8",
+        include_str!("playground/path.js"),
+    ),
+    (
         "jsonlines.js",
         "text/javascript; charset=utf-8",
         include_str!("playground/jsonlines.js"),

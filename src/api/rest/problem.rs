@@ -38,104 +38,48 @@ pub struct Problem {
     pub best_attempt: Option<IkItem>,
 }
 
-/// Status, problem kind and title of an error. Exhaustive: every error kind has its HTTP meaning here.
-fn classify(e: &Error) -> (StatusCode, &'static str, &'static str) {
+/// Status and title of an error (its kind is [`Error::kind`]). Exhaustive:
+/// every error kind has its HTTP meaning here.
+fn classify(e: &Error) -> (StatusCode, &'static str) {
     match e {
-        Error::Malformed { .. } => (
-            StatusCode::BAD_REQUEST,
-            "malformed-request",
-            "Malformed request",
-        ),
-        Error::Invalid { .. } => (
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid-input",
-            "Invalid input",
-        ),
-        Error::NotFound { .. } => (StatusCode::NOT_FOUND, "not-found", "Robot not found"),
-        Error::NoRoute { .. } => (StatusCode::NOT_FOUND, "no-route", "No such route"),
-        Error::AlreadyExists { .. } => (
-            StatusCode::CONFLICT,
-            "already-exists",
-            "Robot already exists",
-        ),
-        Error::ReadOnly { .. } => (
-            StatusCode::CONFLICT,
-            "read-only",
-            "Built-in robot is read-only",
-        ),
-        Error::Unauthenticated => (
-            StatusCode::UNAUTHORIZED,
-            "unauthenticated",
-            "Authentication required",
-        ),
-        Error::Forbidden { .. } => (StatusCode::FORBIDDEN, "forbidden", "Forbidden"),
-        Error::Full { .. } => (
-            StatusCode::INSUFFICIENT_STORAGE,
-            "registry-full",
-            "Registry full",
-        ),
-        Error::TooLarge { .. } => (
-            StatusCode::PAYLOAD_TOO_LARGE,
-            "too-large",
-            "Request too large",
-        ),
-        Error::UnsupportedMediaType { .. } => (
-            StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            "unsupported-media-type",
-            "Unsupported media type",
-        ),
-        Error::Overloaded => (
-            StatusCode::SERVICE_UNAVAILABLE,
-            "overloaded",
-            "Server overloaded",
-        ),
-        Error::Unavailable { .. } => (
-            StatusCode::SERVICE_UNAVAILABLE,
-            "unavailable",
-            "Service unavailable",
-        ),
-        Error::Storage { .. } => (
-            StatusCode::INSUFFICIENT_STORAGE,
-            "storage",
-            "Storage failure",
-        ),
+        Error::Malformed { .. } => (StatusCode::BAD_REQUEST, "Malformed request"),
+        Error::Invalid { .. } => (StatusCode::UNPROCESSABLE_ENTITY, "Invalid input"),
+        Error::NotFound { .. } => (StatusCode::NOT_FOUND, "Robot not found"),
+        Error::NoRoute { .. } => (StatusCode::NOT_FOUND, "No such route"),
+        Error::AlreadyExists { .. } => (StatusCode::CONFLICT, "Robot already exists"),
+        Error::ReadOnly { .. } => (StatusCode::CONFLICT, "Built-in robot is read-only"),
+        Error::Unauthenticated => (StatusCode::UNAUTHORIZED, "Authentication required"),
+        Error::Forbidden { .. } => (StatusCode::FORBIDDEN, "Forbidden"),
+        Error::Full { .. } => (StatusCode::INSUFFICIENT_STORAGE, "Registry full"),
+        Error::TooLarge { .. } => (StatusCode::PAYLOAD_TOO_LARGE, "Request too large"),
+        Error::UnsupportedMediaType { .. } => {
+            (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type")
+        }
+        Error::Overloaded => (StatusCode::SERVICE_UNAVAILABLE, "Server overloaded"),
+        Error::Unavailable { .. } => (StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
+        Error::Storage { .. } => (StatusCode::INSUFFICIENT_STORAGE, "Storage failure"),
         Error::IkNotConverged { .. } => (
             StatusCode::UNPROCESSABLE_ENTITY,
-            "ik-not-converged",
             "Inverse kinematics did not converge",
         ),
-        Error::PreconditionFailed { .. } => (
-            StatusCode::PRECONDITION_FAILED,
-            "precondition-failed",
-            "Precondition failed",
-        ),
+        Error::PreconditionFailed { .. } => {
+            (StatusCode::PRECONDITION_FAILED, "Precondition failed")
+        }
         Error::StoreUnavailable { .. } => (
             StatusCode::SERVICE_UNAVAILABLE,
-            "store-unavailable",
             "Registry store unavailable",
         ),
-        Error::RequestTimeout { .. } => (
-            StatusCode::REQUEST_TIMEOUT,
-            "request-timeout",
-            "Request timeout",
-        ),
-        Error::NotImplemented { .. } => (
-            StatusCode::NOT_IMPLEMENTED,
-            "not-implemented",
-            "Not implemented",
-        ),
-        Error::Internal { .. } => (
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "internal",
-            "Internal error",
-        ),
+        Error::RequestTimeout { .. } => (StatusCode::REQUEST_TIMEOUT, "Request timeout"),
+        Error::NotImplemented { .. } => (StatusCode::NOT_IMPLEMENTED, "Not implemented"),
+        Error::Internal { .. } => (StatusCode::INTERNAL_SERVER_ERROR, "Internal error"),
     }
 }
 
 impl Problem {
     /// The problem document for an error.
     pub fn from_error(e: &Error) -> Problem {
-        let (status, kind, title) = classify(e);
+        let (status, title) = classify(e);
+        let kind = e.kind();
         let mut errors: Vec<ProblemField> = e
             .violations()
             .iter()

@@ -13,7 +13,7 @@ use futures_util::{FutureExt, SinkExt};
 use tokio::time::Instant;
 
 use super::AppState;
-use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsJacobian, WsReply, WsRequest};
+use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsIkPath, WsJacobian, WsReply, WsRequest};
 use super::extract::{Client, RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
@@ -313,6 +313,16 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 /// Jacobian and link transforms when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
+        StreamAnswer::IkPath(a) => WsReply {
+            length_unit: Some(length_unit),
+            ik_path: Some(WsIkPath {
+                points: a.points.clone(),
+                fraction: a.fraction,
+                waypoints_reached: a.waypoints_reached,
+                stop: a.stop.clone(),
+            }),
+            ..WsReply::empty(id)
+        },
         StreamAnswer::Ik(a) => WsReply {
             ik: Some(WsIk::from(a)),
             ..WsReply::posed(id, length_unit, PoseFormat::Full, a.pose, None)

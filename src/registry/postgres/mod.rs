@@ -26,8 +26,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Runtime};
+use tokio_postgres::Row;
 use tokio_postgres::error::SqlState;
-use tokio_postgres::{NoTls, Row};
 
 use super::Change;
 use super::store::{Record, Saved, Store, StoreHealth};
@@ -56,6 +56,9 @@ pub struct PgSettings {
     pub url: String,
     /// A file whose first line is the password (replaces the URL's).
     pub password_file: Option<PathBuf>,
+    /// The CA the database's certificate must chain to (`sslmode=verify-ca`,
+    /// `verify-full`; replaces the URL's `sslrootcert`).
+    pub ca_file: Option<PathBuf>,
     /// Interval of the full resync (besides the one after every reconnect).
     pub resync_interval: Duration,
 }
@@ -65,6 +68,7 @@ impl std::fmt::Debug for PgSettings {
         f.debug_struct("PgSettings")
             .field("url", &"<redacted>")
             .field("password_file", &self.password_file)
+            .field("ca_file", &self.ca_file)
             .field("resync_interval", &self.resync_interval)
             .finish()
     }
@@ -72,9 +76,13 @@ impl std::fmt::Debug for PgSettings {
 
 impl PgSettings {
     /// The driver configuration: the URL, the password file, timeouts and
-    /// keepalives (a dead link is noticed within seconds). Errors never quote the URL.
-    fn driver_config(&self) -> std::result::Result<tokio_postgres::Config, String> {
-        let mut c: tokio_postgres::Config = self.url.parse().map_err(|_| {
+    /// keepalives (a dead link is noticed within seconds), and TLS as the
+    /// URL's `sslmode` says (`crate::tls::postgres`). Errors never quote the URL.
+    fn driver_config(&self) -> std::result::Result<Driver, String> {
+        let split = crate::tls::postgres::split_url(&self.url)?;
+        let ca_file = self.ca_file.as_ref().or(split.root_cert.as_ref());
+        let tls = crate::tls::postgres::connector(split.mode, ca_file.map(PathBuf::as_path))?;
+        let mut c: tokio_postgres::Config = split.url.parse().map_err(|_| {
             "--database-url is not a PostgreSQL connection string (postgres://user:password@host:port/db)".to_string()
         })?;
         if let Some(path) = &self.password_file {
@@ -89,8 +97,33 @@ impl PgSettings {
         c.connect_timeout(CONNECT_TIMEOUT)
             .tcp_user_timeout(Duration::from_secs(5))
             .keepalives_idle(Duration::from_secs(10))
-            .application_name("kinserve");
-        Ok(c)
+            .application_name("kinserve")
+            .ssl_mode(split.mode.driver_mode());
+        Ok(Driver { config: c, tls })
+    }
+}
+
+/// A connection of [`Driver::connect`] (its driver half).
+pub(crate) type Connection = tokio_postgres::Connection<
+    tokio_postgres::Socket,
+    <tokio_postgres_rustls::MakeRustlsConnect as tokio_postgres::tls::MakeTlsConnect<
+        tokio_postgres::Socket,
+    >>::Stream,
+>;
+
+/// How to connect: the driver's configuration and its TLS connector.
+#[derive(Clone)]
+pub(crate) struct Driver {
+    config: tokio_postgres::Config,
+    tls: tokio_postgres_rustls::MakeRustlsConnect,
+}
+
+impl Driver {
+    /// Opens one connection.
+    pub(crate) async fn connect(
+        &self,
+    ) -> std::result::Result<(tokio_postgres::Client, Connection), tokio_postgres::Error> {
+        self.config.connect(self.tls.clone()).await
     }
 }
 
@@ -134,7 +167,7 @@ impl Link {
 /// The PostgreSQL [`Store`].
 pub struct PgStore {
     pool: Pool,
-    driver: tokio_postgres::Config,
+    driver: Driver,
     runtime: tokio::runtime::Handle,
     link: Arc<Link>,
     /// Most live robots in the database (`usize::MAX`: no check).
@@ -170,6 +203,14 @@ impl PgStore {
         loop {
             match schema::migrate(&driver).await {
                 Ok(()) => break,
+                // A refused certificate stays refused: say so now, not in 30 s.
+                Err(e) if crate::tls::postgres::certificate_error(&e).is_some() => {
+                    let why = crate::tls::postgres::certificate_error(&e).unwrap_or_default();
+                    return Err(format!(
+                        "the database's TLS certificate is refused ({why}): check --database-ca-file \
+                         (or sslrootcert) and, with sslmode=verify-full, the host name in --database-url"
+                    ));
+                }
                 Err(e) if Instant::now() < deadline => {
                     tracing::warn!(error = %e, "cannot prepare the database yet; retrying");
                     tokio::time::sleep(pause).await;
@@ -184,8 +225,8 @@ impl PgStore {
             }
         }
         let manager = Manager::from_config(
-            driver.clone(),
-            NoTls,
+            driver.config.clone(),
+            driver.tls.clone(),
             ManagerConfig {
                 recycling_method: RecyclingMethod::Fast,
             },

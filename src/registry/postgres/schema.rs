@@ -3,8 +3,6 @@
 //! apply each migration exactly once (the others wait, then find it done).
 //! Owns the migration list only.
 
-use tokio_postgres::NoTls;
-
 /// The migrations, in order; a number is never reused or changed once released.
 const MIGRATIONS: &[(i32, &str)] = &[(1, include_str!("migrations/0001_robots.sql"))];
 
@@ -13,8 +11,8 @@ const LOCK_KEY: i64 = 0x6b69_6e73_6572_7665;
 
 /// Connects and brings the schema up to date. Errors are the driver's (they
 /// never contain the password).
-pub(super) async fn migrate(driver: &tokio_postgres::Config) -> Result<(), tokio_postgres::Error> {
-    let (mut client, connection) = driver.connect(NoTls).await?;
+pub(super) async fn migrate(driver: &super::Driver) -> Result<(), tokio_postgres::Error> {
+    let (mut client, connection) = driver.connect().await?;
     let task = tokio::spawn(connection);
     let result = apply(&mut client).await;
     drop(client);

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use futures_util::StreamExt;
 use tokio::sync::mpsc;
-use tokio_postgres::{AsyncMessage, Client, NoTls};
+use tokio_postgres::{AsyncMessage, Client};
 use tokio_util::sync::CancellationToken;
 
 use super::{CHANNEL, Link, SELECT_ALL, SELECT_ONE, change_of};
@@ -31,7 +31,7 @@ const BACKOFF: (Duration, Duration) = (Duration::from_millis(100), Duration::fro
 
 /// The sync task of one replica (see the module docs).
 pub struct Syncer {
-    driver: tokio_postgres::Config,
+    driver: super::Driver,
     link: Arc<Link>,
     resync_interval: Duration,
 }
@@ -51,11 +51,7 @@ impl std::fmt::Debug for Syncer {
 }
 
 impl Syncer {
-    pub(super) fn new(
-        driver: tokio_postgres::Config,
-        link: Arc<Link>,
-        resync_interval: Duration,
-    ) -> Syncer {
+    pub(super) fn new(driver: super::Driver, link: Arc<Link>, resync_interval: Duration) -> Syncer {
         Syncer {
             driver,
             link,
@@ -176,9 +172,9 @@ async fn timed<T>(
 /// Opens the listening connection: its driver runs in a task that forwards
 /// notification payloads; the channel closes when the connection ends.
 async fn listen(
-    driver: &tokio_postgres::Config,
+    driver: &super::Driver,
 ) -> Result<(Client, mpsc::UnboundedReceiver<String>), String> {
-    let (client, mut connection) = driver.connect(NoTls).await.map_err(|e| e.to_string())?;
+    let (client, mut connection) = driver.connect().await.map_err(|e| e.to_string())?;
     let (tx, rx) = mpsc::unbounded_channel();
     tokio::spawn(async move {
         let mut messages = futures_util::stream::poll_fn(move |cx| connection.poll_message(cx));

@@ -206,6 +206,7 @@ macro_rules! reflection_suite {
                     "LinkTransforms",
                     "InverseKinematics",
                     "InverseKinematicsBatch",
+                    "InverseKinematicsPath",
                 ]
                 .into();
                 assert_eq!(methods, want);

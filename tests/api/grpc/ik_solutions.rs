@@ -291,3 +291,132 @@ async fn requests_the_closed_form_cannot_honour_name_the_same_field_everywhere()
         (Code::InvalidArgument, vec!["solver".to_string()])
     );
 }
+
+#[tokio::test]
+async fn a_cartesian_path_is_the_same_on_rest_websocket_and_grpc() {
+    let app = spawn_ik_app().await;
+    let mut c = app.grpc_client().await;
+    let start = [5.0, -20.0, 35.0, 10.0, 30.0, -15.0];
+    let pose = fk_ok(
+        &app,
+        "puma560",
+        json!({"joints": start, "angle_unit": "deg"}),
+    )
+    .await["pose"]
+        .clone();
+    let mut end = pose["position"].clone();
+    end[2] = json!(end[2].as_f64().unwrap() + 0.04);
+    let far = json!([2.0, 0.0, 0.5]);
+    let target = |p: &Value| json!({"position": p, "quaternion": pose["quaternion"]});
+    let body = json!({"start": start, "angle_unit": "deg", "waypoints": [target(&end), target(&far)],
+        "max_step_length": 0.01});
+    let rest = rest_ok(&app, "/v1/robots/puma560/ik/path", &body).await;
+    // The first leg is taken (4 steps of 1 cm), the second stops where the arm runs out of reach.
+    assert_eq!(rest["waypoints_reached"], 1, "{rest}");
+    let points = rest["points"].as_array().unwrap();
+    assert!(points.len() > 5, "{rest}");
+    let stop = &rest["stop"];
+    assert!(
+        ["unreachable", "joint_limits", "joint_jump"].contains(&stop["reason"].as_str().unwrap()),
+        "{stop}"
+    );
+    assert_eq!(stop["step"].as_u64(), Some(points.len() as u64));
+    let f = rest["fraction"].as_f64().unwrap();
+    assert!(f > 0.0 && f < 1.0);
+    // Every step: FK by the library within the limits; the first leg on its line.
+    let m = model("puma560");
+    for q in points {
+        let qr: Vec<f64> = floats(q).iter().map(|x| x.to_radians()).collect();
+        assert!(
+            m.check_joints(&qr, &kinserve::model::FkOptions::default())
+                .is_ok()
+        );
+    }
+    let leg_end: Vec<f64> = floats(&points[4]).iter().map(|x| x.to_radians()).collect();
+    let p = m.fk_unchecked(&leg_end).position();
+    for (i, e) in floats(&end).iter().enumerate() {
+        assert!((p[i] - e).abs() < 1e-9, "end of the first leg {p:?}");
+    }
+    let ws = ws_one(&app, "puma560", json!({"id": "p", "ik_path": body})).await;
+    assert_eq!(
+        (&ws["points"], &ws["stop"], &ws["fraction"]),
+        (&rest["points"], &rest["stop"], &rest["fraction"]),
+        "WebSocket"
+    );
+    let pb_target = |p: &Value| pb::IkTarget {
+        position: Some(pb::Vector3 {
+            x: p[0].as_f64().unwrap(),
+            y: p[1].as_f64().unwrap(),
+            z: p[2].as_f64().unwrap(),
+        }),
+        quaternion: Some(pb::Quaternion {
+            w: pose["quaternion"]["w"].as_f64().unwrap(),
+            x: pose["quaternion"]["x"].as_f64().unwrap(),
+            y: pose["quaternion"]["y"].as_f64().unwrap(),
+            z: pose["quaternion"]["z"].as_f64().unwrap(),
+        }),
+        ..Default::default()
+    };
+    let req = pb::InverseKinematicsPathRequest {
+        robot: "puma560".into(),
+        start: Some(pb::JointConfiguration {
+            joints: start.to_vec(),
+        }),
+        waypoints: vec![pb_target(&end), pb_target(&far)],
+        angle_unit: pb::AngleUnit::Deg as i32,
+        max_step_length: Some(0.01),
+        ..Default::default()
+    };
+    let g = c
+        .inverse_kinematics_path(req.clone())
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(g.points.len(), points.len());
+    for (a, b) in g.points.iter().zip(points) {
+        assert_eq!(a.joints, floats(b), "gRPC points");
+    }
+    let s = g.stop.unwrap();
+    assert_eq!(
+        (s.step as u64, s.detail.as_str()),
+        (
+            stop["step"].as_u64().unwrap(),
+            stop["detail"].as_str().unwrap()
+        )
+    );
+    assert_eq!(g.fraction, f);
+    // On the gRPC stream too.
+    let (tx, mut rx) = open_stream(&mut c, 4).await;
+    let mut msg = stream_request(5, "puma560", &[], None);
+    msg.ik_path = Some(pb::InverseKinematicsPathRequest {
+        robot: String::new(),
+        ..req.clone()
+    });
+    tx.send(msg).await.unwrap();
+    let s = rx.message().await.unwrap().unwrap();
+    assert_eq!(s.id, 5);
+    assert_eq!(s.ik_path.expect("path answer").points, g.points, "stream");
+    // Refused requests name the same field.
+    let bad = json!({"start": [0, 0, 0], "waypoints": [target(&end)]});
+    let p = problem(app.post("/v1/robots/puma560/ik/path", &bad).await, 422).await;
+    assert_eq!(p["errors"][0]["field"], "start");
+    let mut r = req.clone();
+    r.start = Some(pb::JointConfiguration {
+        joints: vec![0.0; 3],
+    });
+    let e = c.inverse_kinematics_path(r).await.unwrap_err();
+    assert_eq!(
+        (e.code(), status_fields(&e)),
+        (Code::InvalidArgument, vec!["start".to_string()])
+    );
+    let e = c
+        .inverse_kinematics_path(pb::InverseKinematicsPathRequest {
+            max_step_length: Some(1e-7),
+            ..req
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::ResourceExhausted);
+    let p = problem(app.post("/v1/robots/puma560/ik/path", &json!({"start": start, "angle_unit": "deg", "waypoints": [target(&far)], "max_step_length": 1e-7})).await, 413).await;
+    assert_eq!(p["errors"][0]["field"], "max_step_length", "{p}");
+}

@@ -42,11 +42,33 @@ pub async fn spawn_app_with(configure: impl FnOnce(&mut ServeConfig)) -> TestApp
     app
 }
 
+/// Starts a server serving TLS (`configure` sets the certificate): ready
+/// once the service says so (the plain readiness probe cannot speak TLS).
+pub async fn spawn_tls_app(configure: impl FnOnce(&mut ServeConfig)) -> TestApp {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let mut config = ServeConfig::for_tests(tmp.path().to_path_buf());
+    configure(&mut config);
+    assert!(config.tls.enabled(), "spawn_tls_app without --tls-cert");
+    let mut app = start(config).await;
+    app._tmp = Some(tmp);
+    app
+}
+
 /// Starts a server on an existing data directory (for restart tests).
 pub async fn spawn_in(data_dir: &Path, configure: impl FnOnce(&mut ServeConfig)) -> TestApp {
     let mut config = ServeConfig::for_tests(data_dir.to_path_buf());
     configure(&mut config);
+    let t = start(config).await;
+    t.wait_ready().await;
+    t
+}
+
+/// Builds and runs the server of `config` (not waiting for readiness over HTTP).
+async fn start(config: ServeConfig) -> TestApp {
+    let data_dir = config.data_dir.clone();
+    let tls = config.tls.enabled();
     let app = App::build(config).await.expect("server builds");
+    let service = app.service();
     let http_port = app.http_port();
     let grpc_port = app.grpc_port();
     let shutdown = app.shutdown_handle();
@@ -56,12 +78,19 @@ pub async fn spawn_in(data_dir: &Path, configure: impl FnOnce(&mut ServeConfig))
         ws: format!("ws://127.0.0.1:{http_port}"),
         grpc: format!("http://127.0.0.1:{grpc_port}"),
         client: reqwest::Client::new(),
-        data_dir: data_dir.to_path_buf(),
+        data_dir,
         _tmp: None,
         shutdown,
         task: Some(task),
     };
-    t.wait_ready().await;
+    if tls {
+        for _ in 0..500 {
+            if service.is_ready() {
+                break;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        }
+    }
     t
 }
 

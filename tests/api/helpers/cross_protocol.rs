@@ -77,8 +77,13 @@ pub(crate) fn problem_error(status: u16, problem: &Value) -> Failure {
                 .collect()
         })
         .unwrap_or_default();
+    let type_ = problem["type"].as_str().unwrap_or("");
     Failure {
-        class: class_of_http(status, problem["type"].as_str().unwrap_or("")),
+        class: class_of_http(status, type_),
+        kind: type_
+            .strip_prefix("urn:kinserve:problem:")
+            .unwrap_or_default()
+            .to_string(),
         fields,
         raw: problem.to_string(),
     }
@@ -87,6 +92,9 @@ pub(crate) fn problem_error(status: u16, problem: &Value) -> Failure {
 #[derive(Clone, Debug)]
 pub(crate) struct Failure {
     pub(crate) class: Class,
+    /// The problem kind (`invalid-input`): REST's problem type, gRPC's
+    /// `ErrorInfo` reason; empty when the answer names none.
+    pub(crate) kind: String,
     pub(crate) fields: Vec<String>,
     pub(crate) raw: String,
 }
@@ -364,6 +372,7 @@ pub(crate) async fn over_grpc_unary(app: &TestApp, case: &Case) -> Outcome {
         }
         Err(s) => Err(Failure {
             class: class_of_code(s.code()),
+            kind: status_kind(&s),
             fields: status_fields(&s),
             raw: format!("{s:?}"),
         }),
@@ -397,6 +406,7 @@ pub(crate) async fn over_grpc_stream(app: &TestApp, cases: &[Case]) -> Vec<Outco
             }),
             StreamResult::Error(e) => Err(Failure {
                 class: class_of_i32(e.code),
+                kind: rpc_status_kind(&e),
                 fields: rpc_status_fields(&e),
                 raw: format!("{e:?}"),
             }),

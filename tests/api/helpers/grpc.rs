@@ -26,6 +26,26 @@ pub(crate) fn rpc_status_fields(status: &tonic_types::Status) -> Vec<String> {
         .unwrap_or_default()
 }
 
+/// The problem kind a gRPC error names: the `google.rpc.ErrorInfo` reason
+/// (domain `kinserve`) in REST's spelling (`INVALID_INPUT` -> `invalid-input`);
+/// empty when the status carries none.
+pub(crate) fn status_kind(status: &Status) -> String {
+    status
+        .get_details_error_info()
+        .filter(|i| i.domain == "kinserve")
+        .map(|i| i.reason.to_ascii_lowercase().replace('_', "-"))
+        .unwrap_or_default()
+}
+
+/// [`status_kind`] of a stream error.
+pub(crate) fn rpc_status_kind(status: &tonic_types::Status) -> String {
+    status
+        .get_details_error_info()
+        .filter(|i| i.domain == "kinserve")
+        .map(|i| i.reason.to_ascii_lowercase().replace('_', "-"))
+        .unwrap_or_default()
+}
+
 /// A unary FK request.
 pub(crate) fn fk_request(
     robot: &str,

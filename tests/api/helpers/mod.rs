@@ -10,6 +10,7 @@ pub(crate) mod browser;
 pub(crate) mod checker;
 pub(crate) mod corpus;
 pub(crate) mod cross_protocol;
+pub(crate) mod doc_blocks;
 pub(crate) mod grpc;
 pub(crate) mod h2grpc;
 pub(crate) mod http;
@@ -20,6 +21,7 @@ pub(crate) mod postgres;
 pub(crate) mod process;
 pub(crate) mod raw;
 pub(crate) mod readme;
+pub(crate) mod tls;
 pub(crate) mod witness;
 pub(crate) mod ws;
 

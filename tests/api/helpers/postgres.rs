@@ -68,6 +68,40 @@ impl Postgres {
     /// Starts a fresh cluster; `None` (after printing SKIPPED) when PostgreSQL
     /// is not installed outside CI (under CI: a failure). Blocking (a second or two).
     pub(crate) fn start(test: &str) -> Option<Postgres> {
+        Postgres::start_with(test, |_| {})
+    }
+
+    /// Starts a fresh cluster with `ssl = on` and `server` (a certificate
+    /// and its key, PEM) as its certificate; plain connections still work.
+    pub(crate) fn start_with_tls(test: &str, server: &super::tls::Pem) -> Option<Postgres> {
+        Postgres::start_with(test, |pg| {
+            let data = pg.data();
+            std::fs::write(data.join("server.crt"), &server.cert).unwrap();
+            std::fs::write(data.join("server.key"), &server.key).unwrap();
+            let conf = data.join("postgresql.conf");
+            let mut text = std::fs::read_to_string(&conf).unwrap();
+            text.push_str(
+                "\nssl = on\nssl_cert_file = 'server.crt'\nssl_key_file = 'server.key'\n",
+            );
+            std::fs::write(&conf, text).unwrap();
+            // The server refuses a key others can read.
+            let key = data.join("server.key");
+            check("chmod", Command::new("chmod").arg("600").arg(&key).output());
+            if pg.as_postgres {
+                check(
+                    "chown",
+                    Command::new("chown")
+                        .arg("postgres:postgres")
+                        .arg(&key)
+                        .arg(data.join("server.crt"))
+                        .output(),
+                );
+            }
+        })
+    }
+
+    /// Starts a fresh cluster, running `prepare` between initdb and the start.
+    fn start_with(test: &str, prepare: impl FnOnce(&Postgres)) -> Option<Postgres> {
         let Some(bin) = pg_bin() else {
             kinserve_testkit::skip_unless_ci(
                 test,
@@ -105,6 +139,7 @@ impl Postgres {
                 .arg(&data)
                 .output(),
         );
+        prepare(&pg);
         pg.start_server();
         Some(pg)
     }

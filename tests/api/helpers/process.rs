@@ -117,6 +117,16 @@ pub(crate) async fn start_server(
     env: &[(&str, &str)],
     wrapper: Option<&str>,
 ) -> Server {
+    start_server_probed(data_dir, env, wrapper, None).await
+}
+
+/// [`start_server`], ready once `ready` says so (instead of a plain `GET /readyz`).
+pub(crate) async fn start_server_probed(
+    data_dir: &Path,
+    env: &[(&str, &str)],
+    wrapper: Option<&str>,
+    ready: Option<&(dyn Fn(&Server) -> bool + Sync)>,
+) -> Server {
     let mut last = String::new();
     for _attempt in 0..3 {
         let (hp, gp) = (free_port(), free_port());
@@ -172,7 +182,11 @@ pub(crate) async fn start_server(
             if let Ok(Some(_)) = server.child.try_wait() {
                 break;
             }
-            if let Ok(r) = client.get(format!("{}/readyz", server.http)).send().await
+            if let Some(ready) = ready {
+                if ready(&server) {
+                    return server;
+                }
+            } else if let Ok(r) = client.get(format!("{}/readyz", server.http)).send().await
                 && r.status() == 200
             {
                 return server;

@@ -1,26 +1,55 @@
-//! The README's (and the migration note's) checked examples: a
-//! `<!-- … example: REQUEST -->` marker followed by a ```json block with the
-//! answer the server gives.
+//! The docs' checked examples: a `<!-- … example: REQUEST -->` marker
+//! followed by a ```json block with the answer the server gives, found in
+//! README.md and every `docs/*.md` (read at run time, so a new page is
+//! checked without a change here).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use serde_json::Value;
 
-/// The README, as built into the test binary.
-const README: &str = include_str!("../../../README.md");
-
-/// docs/MIGRATION.md, as built into the test binary.
-const MIGRATION: &str = include_str!("../../../docs/MIGRATION.md");
+/// README.md and `docs/*.md` (sorted), as `(path relative to the repository,
+/// text)`, read once.
+pub(crate) fn doc_pages() -> &'static [(String, String)] {
+    static PAGES: OnceLock<Vec<(String, String)>> = OnceLock::new();
+    PAGES.get_or_init(|| {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut paths: Vec<PathBuf> = std::fs::read_dir(root.join("docs"))
+            .expect("docs/ exists")
+            .map(|e| e.expect("docs/ entry").path())
+            .filter(|p| p.extension().is_some_and(|e| e == "md"))
+            .collect();
+        paths.sort();
+        std::iter::once(root.join("README.md"))
+            .chain(paths)
+            .map(|p| {
+                let text = std::fs::read_to_string(&p).expect("doc page reads");
+                let rel = p.strip_prefix(root).unwrap().display().to_string();
+                (rel, text)
+            })
+            .collect()
+    })
+}
 
 /// Every example after `marker` (e.g. `"<!-- error example: "`) in the
-/// README: the request text up to ` -->`, and the first ```json block after
-/// it, parsed.
+/// docs except docs/MIGRATION.md: the request text up to ` -->`, and the
+/// first ```json block after it, parsed.
 pub(crate) fn readme_examples(marker: &str) -> Vec<(&'static str, Value)> {
-    examples_in(README, marker)
+    doc_pages()
+        .iter()
+        .filter(|(path, _)| path != "docs/MIGRATION.md")
+        .flat_map(|(_, text)| examples_in(text, marker))
+        .collect()
 }
 
 /// Every example after `marker` in docs/MIGRATION.md (the new shapes), as
 /// [`readme_examples`].
 pub(crate) fn migration_examples(marker: &str) -> Vec<(&'static str, Value)> {
-    examples_in(MIGRATION, marker)
+    doc_pages()
+        .iter()
+        .filter(|(path, _)| path == "docs/MIGRATION.md")
+        .flat_map(|(_, text)| examples_in(text, marker))
+        .collect()
 }
 
 fn examples_in(text: &'static str, marker: &str) -> Vec<(&'static str, Value)> {
@@ -35,19 +64,22 @@ fn examples_in(text: &'static str, marker: &str) -> Vec<(&'static str, Value)> {
                 .split("```")
                 .next()
                 .unwrap();
-            let documented = serde_json::from_str(block).expect("README example is JSON");
+            let documented = serde_json::from_str(block).expect("docs example is JSON");
             (request, documented)
         })
         .collect()
 }
 
 /// The text of the first `fence` block (e.g. "```xml") after `marker` in the
-/// README (for examples whose request body is a document of its own).
+/// docs (for examples whose request body is a document of its own).
 pub(crate) fn readme_block_after(marker: &str, fence: &str) -> &'static str {
-    README
-        .split_once(marker)
-        .and_then(|(_, rest)| rest.split_once(fence))
-        .and_then(|(_, block)| block.split_once("```"))
-        .map(|(body, _)| body.trim_start_matches('\n'))
+    doc_pages()
+        .iter()
+        .find_map(|(_, text)| {
+            text.split_once(marker)
+                .and_then(|(_, rest)| rest.split_once(fence))
+                .and_then(|(_, block)| block.split_once("```"))
+                .map(|(body, _)| body.trim_start_matches('\n'))
+        })
         .expect("a block of that kind follows the marker")
 }

@@ -179,6 +179,7 @@ const ROUTES: &[(&str, &[&str])] = &[
     ("/v1/robots/{name}/jacobian/batch", &["post"]),
     ("/v1/robots/{name}/ik", &["post"]),
     ("/v1/robots/{name}/ik/batch", &["post"]),
+    ("/v1/robots/{name}/ik/path", &["post"]),
     ("/v1/robots/{name}/closed-form", &["get"]),
     ("/v1/robots/{name}/link-transforms", &["post"]),
     ("/v1/robots/{name}/urdf", &["get"]),

@@ -96,7 +96,10 @@ pub struct ClosedForm {
     pub transform: SymbolicMatrix,
     /// The model's base transform, numbers (4×4 row-major).
     pub base: [[f64; 4]; 4],
-    /// The model's tool transform, numbers (4×4 row-major); absent when the model has none.
+    /// The model's tool transform, numbers (4×4 row-major); the key is
+    /// absent when the model has none (as `tool` is absent from the gRPC
+    /// `GetClosedFormResponse`).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub tool: Option<[[f64; 4]; 4]>,
 }
 

@@ -7,6 +7,7 @@
 //! Needs only the math crates (`kinserve-testkit` without its `server`
 //! feature for the unchecked FK of expected values).
 mod closed_form;
+mod ik_path;
 mod ik_requests;
 mod ik_solutions;
 mod model;

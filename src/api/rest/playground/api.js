@@ -97,6 +97,38 @@ export async function jacobianBatch(name, configurations, signal) {
   return data;
 }
 
+/** `POST /v1/robots/{name}/fk` of one configuration (degrees) with every frame. */
+export async function fkFrames(name, joints, signal) {
+  const { data } = await request('POST', `${robotPath(name)}/fk`, {
+    body: { joints, angle_unit: 'deg', frames: true },
+    signal,
+  });
+  return data;
+}
+
+/** `POST /v1/robots/{name}/ik` with `body` as given (a 422 is an `ApiError`). */
+export async function solveIk(name, body, signal) {
+  const { data } = await request('POST', `${robotPath(name)}/ik`, { body, signal });
+  return data;
+}
+
+/** `POST /v1/robots/{name}/ik/path` with `body` as given. */
+export async function ikPath(name, body, signal) {
+  const { data } = await request('POST', `${robotPath(name)}/ik/path`, { body, signal });
+  return data;
+}
+
+/** The text to show for a failure: the problem's detail (and field errors), or the message. */
+export function problemText(err) {
+  if (err instanceof ApiError) {
+    const p = err.problem;
+    const head = p.detail || p.title || `HTTP ${err.status}`;
+    const fields = p.errors.map((e) => (e.field ? `${e.field}: ${e.message}` : e.message)).join('; ');
+    return fields && !head.includes(fields) ? `${head} (${fields})` : head;
+  }
+  return String(err && err.message ? err.message : err);
+}
+
 /** `PUT /v1/robots/{name}` with the model text as typed; resolves `{status, statusText, data}`. */
 export async function putRobot(name, modelText, token) {
   const headers = { 'Content-Type': 'application/json' };

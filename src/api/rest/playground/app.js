@@ -1,9 +1,10 @@
-// kinserve playground: main module. Plain ES module, no third-party code.
-// Server strings only ever reach the page through textContent.
+// kinserve playground: main module (plain ES, no third-party code); server strings reach the page only through textContent.
 
 import { ApiError, FkStream, fkBatch, getRobot, importUrdf, jacobianBatch, listRobots, putRobot } from './api.js';
 import { jsonPathLines, lineForField } from './jsonlines.js';
 import { showClosedForm } from './closedform.js';
+import { SolutionGhosts } from './ghosts.js';
+import { CartesianPath } from './path.js';
 import { View3D, formatLen } from './view3d.js';
 
 const DEFAULT_ROBOT = 'puma560';
@@ -35,6 +36,17 @@ const state = {
 };
 
 let view = null;
+/** What the IK tool modules (ghosts.js, path.js) may use of the page. */
+const host = {
+  state,
+  view: null,
+  moveTo(values) {
+    state.values = values.slice();
+    setSliders(state.values);
+    requestFk();
+  },
+};
+let ikTools = [];
 
 // ---------------------------------------------------------------- helpers --
 
@@ -79,9 +91,7 @@ function fmt(x, digits = 6) {
   return /^-0\.?0*$/.test(s) ? s.slice(1) : s;
 }
 
-function nice(x) {
-  return formatLen(x);
-}
+const nice = formatLen;
 
 /** Largest 1, 2, 5 × 10^k not above x. */
 function niceStep(x) {
@@ -122,11 +132,24 @@ async function loadRobotList(preferred) {
   return pick;
 }
 
+/** The robot named by the page address (`/?robot=ur5e`), if any. */
+function robotFromAddress() {
+  return new URLSearchParams(location.search).get('robot');
+}
+
+/** Keeps `?robot=` in the address in step with the robot shown (no reload, no history entry). */
+function showRobotInAddress(name) {
+  const url = new URL(location.href);
+  if (url.searchParams.get('robot') === name) return;
+  url.searchParams.set('robot', name);
+  history.replaceState(null, '', url);
+}
+
 async function start() {
   let delay = 500;
   for (;;) {
     try {
-      const pick = await loadRobotList(DEFAULT_ROBOT);
+      const pick = await loadRobotList(robotFromAddress() || DEFAULT_ROBOT);
       showGlobalError('');
       if (pick === undefined) {
         showGlobalError('The server has no robots.');
@@ -218,6 +241,7 @@ async function selectRobot(name) {
   if (state.stream) state.stream.close();
   state.stream = null;
   state.name = name;
+  showRobotInAddress(name);
   setWsStatus('offline');
   setWorkspaceBusy(false);
   $('workspace-info').textContent = 'Samples random configurations within the joint limits and plots the tool positions.';
@@ -244,6 +268,7 @@ async function selectRobot(name) {
   renderDhTable(model);
   showClosedForm(name, () => gen === state.gen);
   renderSliders();
+  for (const t of ikTools) t.setRobot(name, state.robots.find((r) => String(r.name) === name), model);
   clearPose(model);
   prefillEditor(model);
   if (view) view.setRobot({ unit: model.length_unit === 'mm' ? 'mm' : 'm', size: robotSize(model), baseOrigin: state.baseOrigin });
@@ -921,6 +946,12 @@ function init() {
     }
   } catch {
     view = null;
+  }
+  ikTools = [new SolutionGhosts(host), new CartesianPath(host)];
+  host.view = view;
+  if (view) {
+    view.layers.push(...ikTools.map((t) => t.layer));
+    view.onPick = (x, y) => ikTools[0].pick(x, y);
   }
   $('robot-select').addEventListener('change', (e) => selectRobot(e.target.value));
   $('home').addEventListener('click', goHome);

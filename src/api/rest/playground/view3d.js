@@ -3,7 +3,9 @@
 // zoom with the wheel or a pinch, keyboard: arrows orbit, +/- zoom, f fits.
 // Dragging the tool triad moves an IK target in the view plane (onToolDrag);
 // with the tool selected, alt+arrows and PageUp/PageDown nudge it (onToolNudge).
-// A failed IK's best attempt is drawn as a ghost (setGhost).
+// A failed IK's best attempt is drawn as a ghost (setGhost). Other modules
+// draw through `layers` (functions of the camera basis and the view, drawn
+// over the arm) and hear clicks that neither drag nor orbit (`onPick`).
 
 const DEG = Math.PI / 180;
 
@@ -26,7 +28,7 @@ function niceStep(x) {
 }
 
 /** Origin and axes of a 4×4 row-major pose matrix (array of rows), or null. */
-function frameOf(matrix) {
+export function frameOf(matrix) {
   if (!Array.isArray(matrix) || matrix.length < 3) return null;
   const r = (i, j) => Number(matrix[i] && matrix[i][j]);
   const o = [r(0, 3), r(1, 3), r(2, 3)];
@@ -56,6 +58,8 @@ export class View3D {
     this.toolSelected = false;
     this.onToolDrag = null; // (position) => void, while the tool is dragged
     this.onToolNudge = null; // (delta) => void, keys with the tool selected
+    this.layers = []; // [(basis, view) => void], drawn over the arm (translucent), under the target ring
+    this.onPick = null; // (x, y) => void: a click (CSS px in the canvas) that did not move
     this.cloud = null; // Float64Array [x,y,z,...]
     this.unit = 'm';
     this.size = 1; // characteristic length of the robot
@@ -302,6 +306,13 @@ export class View3D {
     this.drawCloud(b);
     if (this.ghost) this.drawGhost(b);
     this.drawRobot(b);
+    for (const layer of this.layers) {
+      try {
+        layer(b, this);
+      } catch (err) {
+        this.lastError = err;
+      }
+    }
     this.drawTarget(b);
     this.drawOverlay(gridStep);
     // Where the tool handle is, for automation (and the browser test).
@@ -535,7 +546,7 @@ export class View3D {
         Math.hypot(e.clientX - rect.left - t[0], e.clientY - rect.top - t[1]) <= 16;
       this.toolSelected = onTool;
       const drag = onTool ? { at: this.tool.o.slice() } : null;
-      this.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, button: e.button, shift: e.shiftKey, drag });
+      this.pointers.set(e.pointerId, { x: e.clientX, y: e.clientY, x0: e.clientX, y0: e.clientY, button: e.button, shift: e.shiftKey, drag });
       if (onTool) this.redraw();
       try {
         c.setPointerCapture(e.pointerId);
@@ -549,7 +560,15 @@ export class View3D {
       this.pointers.delete(e.pointerId);
       this.pinch = this.pointers.size === 2 ? this.pinchDistance() : null;
     };
-    c.addEventListener('pointerup', end);
+    c.addEventListener('pointerup', (e) => {
+      const p = this.pointers.get(e.pointerId);
+      const still = p && !p.drag && p.button === 0 && !p.shift && this.pointers.size === 1;
+      end(e);
+      if (still && this.onPick && Math.hypot(e.clientX - p.x0, e.clientY - p.y0) < 4) {
+        const rect = c.getBoundingClientRect();
+        this.onPick(e.clientX - rect.left, e.clientY - rect.top);
+      }
+    });
     c.addEventListener('pointercancel', end);
     c.addEventListener('lostpointercapture', end);
     c.addEventListener('pointermove', (e) => {
