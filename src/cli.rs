@@ -80,7 +80,6 @@ pub fn run(cli: Cli) -> ExitCode {
 }
 
 fn serve(config: ServeConfig) -> ExitCode {
-    crate::telemetry::init_tracing(config.log_format);
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -91,10 +90,21 @@ fn serve(config: ServeConfig) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    let tracing =
+        crate::telemetry::traces::init(config.log_format, &config.traces, Some(runtime.handle()));
+    let tracing = match tracing {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("kinserve: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
     let result = runtime.block_on(async {
         let app = crate::startup::App::build(config).await?;
         app.run_until_stopped().await
     });
+    // The spans still buffered are sent while the runtime still runs.
+    tracing.shutdown();
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

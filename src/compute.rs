@@ -282,9 +282,12 @@ impl ComputePool {
         })?;
         let cancel = Arc::new(AtomicBool::new(false));
         let _armed = CancelOnDrop(Arc::clone(&cancel));
+        // The caller's span goes along to the blocking thread (free when
+        // trace export is off: the span is disabled).
+        let span = crate::trace_span!("compute pool");
         tokio::task::spawn_blocking(move || {
             let _permit = permit;
-            work(&cancel)
+            span.in_scope(|| work(&cancel))
         })
         .await
         .map_err(|e| Error::Internal {

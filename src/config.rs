@@ -458,6 +458,9 @@ pub struct ServeConfig {
     /// Log format.
     #[arg(long, env = "KINSERVE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Human)]
     pub log_format: LogFormat,
+    /// OpenTelemetry trace export (off unless --otlp-endpoint).
+    #[command(flatten)]
+    pub traces: crate::telemetry::traces::TraceConfig,
     /// Most configurations in one batch request.
     #[arg(long, env = "KINSERVE_MAX_BATCH", default_value_t = 10_000, value_parser = parse_at_most::<MAX_COUNT>)]
     pub max_batch: usize,
@@ -598,6 +601,7 @@ impl std::fmt::Debug for ServeConfig {
             api_token,
             cors_origins,
             log_format,
+            traces,
             access_log,
             max_batch,
             max_robots,
@@ -638,6 +642,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
             .field("cors_origins", cors_origins)
             .field("log_format", log_format)
+            .field("traces", traces)
             .field("access_log", access_log)
             .field("max_batch", max_batch)
             .field("max_robots", max_robots)

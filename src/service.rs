@@ -227,10 +227,12 @@ impl Service {
                 "must not be empty: give a robot name (GET /v1/robots or ListRobots lists them)",
             ));
         }
-        self.registry.get(name).ok_or_else(|| Error::NotFound {
+        let entry = self.registry.get(name).ok_or_else(|| Error::NotFound {
             name: truncate_name(name),
             suggestions: self.nearest_names(name),
-        })
+        })?;
+        crate::telemetry::spans::record_robot(entry.robot.name());
+        Ok(entry)
     }
 
     /// Up to three existing names close to `name`: equal ignoring case,
@@ -302,13 +304,18 @@ impl Service {
         mode: PutMode,
         cond: Condition,
     ) -> Result<(Arc<Entry>, bool)> {
-        let robot = Robot::from_spec(spec, &self.limits.model)?;
+        let robot = crate::trace_span!("validate")
+            .in_scope(|| Robot::from_spec(spec, &self.limits.model))?;
+        crate::telemetry::spans::record_robot(robot.name());
         let this = Arc::clone(self);
-        let put = tokio::task::spawn_blocking(move || this.registry.put(robot, mode, cond))
-            .await
-            .map_err(|e| Error::Internal {
-                detail: e.to_string(),
-            })??;
+        let write = crate::trace_span!("store write", operation = "put");
+        let put = tokio::task::spawn_blocking(move || {
+            write.in_scope(|| this.registry.put(robot, mode, cond))
+        })
+        .await
+        .map_err(|e| Error::Internal {
+            detail: e.to_string(),
+        })??;
         self.record_robot_count();
         Ok(put)
     }
@@ -317,12 +324,15 @@ impl Service {
     pub async fn delete(self: &Arc<Self>, name: &str, cond: Condition) -> Result<()> {
         let this = Arc::clone(self);
         let owned = name.to_string();
-        let result = tokio::task::spawn_blocking(move || this.registry.delete(&owned, cond))
-            .await
-            .map_err(|e| Error::Internal {
-                detail: e.to_string(),
-            })
-            .and_then(|r| r);
+        let write = crate::trace_span!("store write", operation = "delete");
+        let result = tokio::task::spawn_blocking(move || {
+            write.in_scope(|| this.registry.delete(&owned, cond))
+        })
+        .await
+        .map_err(|e| Error::Internal {
+            detail: e.to_string(),
+        })
+        .and_then(|r| r);
         if result.is_ok() {
             self.record_robot_count();
         }
@@ -362,9 +372,10 @@ impl Service {
     /// Checked FK of one configuration: the tool pose, and every frame when
     /// the request asks for them (see [`crate::model::JointVector::fk_frames`]).
     pub fn fk(&self, robot: &Robot, spec: &FkSpec) -> Result<FkAnswer> {
-        let (pose, frames) = robot
-            .check_joints(&spec.joints, &spec.options)?
-            .fk_with_frames(spec.frames);
+        let q = crate::trace_span!("validate")
+            .in_scope(|| robot.check_joints(&spec.joints, &spec.options))?;
+        let (pose, frames) =
+            crate::trace_span!("compute").in_scope(|| q.fk_with_frames(spec.frames));
         Ok(FkAnswer { pose, frames })
     }
 
@@ -375,13 +386,14 @@ impl Service {
         robot: &Robot,
         spec: &LinkTransformsSpec,
     ) -> Result<Vec<LinkTransform>> {
-        Ok(robot
-            .check_joints(&spec.joints, &spec.options)?
-            .link_transforms())
+        let q = crate::trace_span!("validate")
+            .in_scope(|| robot.check_joints(&spec.joints, &spec.options))?;
+        Ok(crate::trace_span!("compute").in_scope(|| q.link_transforms()))
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
     pub fn check_batch_size(&self, count: usize) -> Result<()> {
+        crate::telemetry::spans::record_batch_size(count);
         if count > self.limits.max_batch {
             return Err(Error::TooLarge {
                 detail: format!(
@@ -399,7 +411,12 @@ impl Service {
     pub fn fk_batch(&self, robot: &Robot, spec: &FkBatchSpec) -> Result<Vec<Transform>> {
         let c = &spec.configurations;
         self.check_batch_size(c.len())?;
-        Ok(robot.check_batch(&c.values, &c.lens, &spec.options)?.fk())
+        let batch = crate::trace_span!("validate")
+            .in_scope(|| robot.check_batch(&c.values, &c.lens, &spec.options))?;
+        Ok(
+            crate::trace_span!("compute", kinserve.batch_size = c.len() as i64)
+                .in_scope(|| batch.fk()),
+        )
     }
 }
 
@@ -409,9 +426,9 @@ impl Service {
 impl Service {
     /// Checked Jacobian of one configuration in the request's frame, with its measures.
     pub fn jacobian(&self, robot: &Robot, spec: &JacobianSpec) -> Result<JacobianAnswer> {
-        Ok(robot
-            .check_joints(&spec.joints, &spec.options)?
-            .jacobian(spec.frame))
+        let q = crate::trace_span!("validate")
+            .in_scope(|| robot.check_joints(&spec.joints, &spec.options))?;
+        Ok(crate::trace_span!("compute").in_scope(|| q.jacobian(spec.frame)))
     }
 
     /// Checked Jacobians of many configurations, in request order; one bad
@@ -435,7 +452,10 @@ impl Service {
     ) -> Result<Vec<JacobianAnswer>> {
         let c = &spec.configurations;
         self.check_batch_size(c.len())?;
-        let batch = robot.check_batch(&c.values, &c.lens, &spec.options)?;
+        let batch = crate::trace_span!("validate")
+            .in_scope(|| robot.check_batch(&c.values, &c.lens, &spec.options))?;
+        let _compute =
+            crate::trace_span!("compute", kinserve.batch_size = c.len() as i64).entered();
         let mut out = Vec::with_capacity(batch.len());
         for (i, q) in batch.vectors().enumerate() {
             if i.is_multiple_of(CANCEL_CHUNK) && cancelled(cancel) {
@@ -461,7 +481,8 @@ impl Service {
         spec: &IkSpec,
         cancel: &AtomicBool,
     ) -> Result<IkAnswer> {
-        let request = robot.check_ik(spec)?;
+        let request = crate::trace_span!("validate").in_scope(|| robot.check_ik(spec))?;
+        let _compute = crate::trace_span!("compute").entered();
         // A limit too long to represent (set in code; the command line caps it) is no limit.
         let deadline = Instant::now().checked_add(self.limits.ik_time_limit);
         let answer = request.solve_cancellable(deadline, cancel);
@@ -493,7 +514,10 @@ impl Service {
     ) -> Result<Vec<IkAnswer>> {
         self.check_batch_size(spec.targets.len())
             .map_err(|_| self.targets_too_large(spec.targets.len()))?;
-        let batch = robot.check_ik_batch(spec)?;
+        let batch = crate::trace_span!("validate").in_scope(|| robot.check_ik_batch(spec))?;
+        let _compute =
+            crate::trace_span!("compute", kinserve.batch_size = spec.targets.len() as i64)
+                .entered();
         let now = Instant::now();
         let deadline = deadline_after(now, self.limits.ik_batch_time_limit);
         // No target gets more than the whole batch has (so no sum overflows either).

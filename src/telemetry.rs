@@ -2,13 +2,18 @@
 //! metric families with their help texts. Label sets are bounded: robots are
 //! labelled by name only for the built-ins and the first
 //! [`MAX_REGISTERED_ROBOT_LABELS`] registered names, later ones as `other`.
+//! Traces: [`traces`] (subscriber, OTLP export), [`spans`] (server spans
+//! and W3C trace context at the front doors), [`w3c`] (`traceparent`).
 //! Depends on no other module of the crate.
+
+pub mod spans;
+pub mod traces;
+pub mod w3c;
 
 use std::collections::HashSet;
 use std::sync::{Mutex, OnceLock};
 
 use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
-use tracing_subscriber::EnvFilter;
 
 /// Log output format.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -22,18 +27,10 @@ pub enum LogFormat {
 
 /// Installs the global tracing subscriber (level from `RUST_LOG`, default `info`).
 /// Later calls do nothing.
+/// Trace export stays off; [`traces::init`] also exports.
 pub fn init_tracing(format: LogFormat) {
-    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info"));
-    // Colour codes only when a person reads the terminal, never into files or pipes.
-    let ansi = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let builder = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_ansi(ansi)
-        .with_writer(std::io::stderr);
-    let _ = match format {
-        LogFormat::Human => builder.try_init(),
-        LogFormat::Json => builder.json().flatten_event(true).try_init(),
-    };
+    let _ =
+        traces::init(format, &traces::TraceConfig::default(), None).map(traces::Tracing::shutdown);
 }
 
 /// Latency histogram buckets in seconds (50 µs … 10 s).

@@ -29,5 +29,6 @@ mod secure_defaults;
 mod tls;
 mod tls_postgres;
 mod tls_process;
+mod traces;
 mod urdf_import;
 mod ws;

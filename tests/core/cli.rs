@@ -416,6 +416,37 @@ fn the_degrees_hint_names_the_flag() {
     assert!(!stderr.contains("angle_unit"), "{stderr}");
 }
 
+#[test]
+fn serve_refuses_otlp_endpoints_it_cannot_export_to_and_ratios_outside_zero_to_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let serve = |args: &[&str]| {
+        kinserve()
+            .args([
+                "serve",
+                "--http-addr",
+                "127.0.0.1:0",
+                "--grpc-addr",
+                "127.0.0.1:0",
+            ])
+            .arg("--data-dir")
+            .arg(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let https = serve(&["--otlp-endpoint", "https://collector:4317"]);
+    assert!(!https.status.success());
+    let err = String::from_utf8_lossy(&https.stderr);
+    assert!(
+        err.contains("--otlp-endpoint") && err.contains("http://"),
+        "{err}"
+    );
+    let ratio = serve(&["--trace-sample-ratio", "1.5"]);
+    assert!(!ratio.status.success());
+    let err = String::from_utf8_lossy(&ratio.stderr);
+    assert!(err.contains("--trace-sample-ratio"), "{err}");
+}
+
 /// A JSON array as comma-separated text (a CLI list argument).
 fn csv(v: &serde_json::Value) -> String {
     v.as_array()

@@ -99,6 +99,10 @@ where
         };
         let start = Instant::now();
         let access_log = self.access_log;
+        let trace_id = req
+            .extensions()
+            .get::<crate::telemetry::w3c::TraceId>()
+            .copied();
         let fut = self.inner.call(req);
         Box::pin(async move {
             let result = fut.await;
@@ -122,6 +126,7 @@ where
                         method = %method,
                         code,
                         duration_ms = start.elapsed().as_secs_f64() * 1e3,
+                        trace_id = trace_id.map(tracing::field::display),
                         client_cert = crate::tls::peer::current_subject().as_deref(),
                         "call"
                     );

@@ -176,6 +176,7 @@ impl KinematicsService for GrpcService {
         let spec = FkSpec::try_from(req).map_err(Error::from)?;
         let FkAnswer { pose, frames } = self.service.fk(&entry.robot, &spec)?;
         entry.count_poses(Protocol::Grpc, 1);
+        let _encode = crate::trace_span!("encode").entered();
         let frames = frames.unwrap_or_default();
         let format = spec.pose_format;
         let mut resp = pb::ForwardKinematicsResponse {
@@ -213,6 +214,7 @@ impl KinematicsService for GrpcService {
             .fk_batch_on_pool(client, entry.clone(), spec)
             .await?;
         entry.count_poses(Protocol::Grpc, poses.len() as u64);
+        let _encode = crate::trace_span!("encode").entered();
         let packed_poses = packed_to_pb(spec.pose_format, poses.iter());
         let poses = match packed_poses {
             Some(_) => Vec::new(),

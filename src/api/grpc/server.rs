@@ -134,6 +134,7 @@ pub async fn serve(
     });
     tonic::transport::Server::builder()
         .layer(client_cert)
+        .layer(crate::telemetry::spans::GrpcTraceLayer)
         .layer(grpc_metrics)
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,

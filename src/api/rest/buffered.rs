@@ -23,6 +23,7 @@
 use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
+use tracing::Instrument;
 
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::Request;
@@ -101,6 +102,7 @@ pub async fn read_body(
     };
     let (parts, body) = req.into_parts();
     let bytes = collect(body, expected, limit, &mut held, state)
+        .instrument(crate::trace_span!("read body"))
         .await
         .map_err(refuse)?;
     Ok((Request::from_parts(parts, Body::from(bytes)), Some(held)))

@@ -50,6 +50,7 @@ pub use problem::{ApiError, Problem, ProblemField};
 use crate::compute::{ClientId, FairBudget, share_of};
 use crate::error::Error;
 use crate::service::Service;
+use crate::telemetry::w3c::TraceId;
 
 /// What every handler can reach; cloning it is one reference-count increment.
 #[derive(Clone)]
@@ -437,6 +438,13 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             .unwrap_or("")
             .to_string()
     });
+    // Export on: the server span's trace (set by the span middleware); off:
+    // the caller's `traceparent`, read only for the access log.
+    let trace_id = req.extensions().get::<TraceId>().copied().or_else(|| {
+        access_log
+            .then(|| crate::telemetry::spans::caller_trace_id(req.headers()))
+            .flatten()
+    });
     let resp = next.run(req).await;
     if let Some(request_id) = request_id {
         tracing::info!(
@@ -447,6 +455,7 @@ async fn record_metrics(State(access_log): State<bool>, req: Request, next: Next
             status = resp.status().as_u16(),
             duration_ms = start.elapsed().as_secs_f64() * 1e3,
             request_id = %request_id,
+            trace_id = trace_id.map(tracing::field::display),
             client_cert = crate::tls::peer::current_subject().as_deref(),
             "request"
         );
@@ -503,6 +512,8 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::IF_MATCH,
             header::IF_NONE_MATCH,
             header::HeaderName::from_static("x-request-id"),
+            crate::telemetry::spans::TRACEPARENT,
+            crate::telemetry::spans::TRACESTATE,
         ])
         .expose_headers([
             header::LOCATION,
@@ -510,6 +521,8 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::LAST_MODIFIED,
             header::HeaderName::from_static("x-request-id"),
             header::RETRY_AFTER,
+            crate::telemetry::spans::TRACEPARENT,
+            crate::telemetry::spans::TRACESTATE,
         ]);
     if origins.is_empty() {
         // Any web page may read and compute FK; registry writes (PUT, DELETE,
@@ -581,6 +594,12 @@ pub fn router_with(state: AppState, extra: Router<AppState>) -> Router {
                 })
                 .on_failure(log_failure),
         )
+        // Server spans only when they are exported: with export off the
+        // layer is not there at all.
+        .layer(tower::util::option_layer(
+            crate::telemetry::traces::exporting()
+                .then(|| middleware::from_fn(crate::telemetry::spans::rest_request)),
+        ))
         .layer(PropagateRequestIdLayer::x_request_id())
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
         .layer(cors)

@@ -102,6 +102,7 @@ pub(super) fn json_bytes<T: serde::Serialize>(
     value: &T,
     capacity: usize,
 ) -> Result<Vec<u8>, Error> {
+    let _encode = crate::trace_span!("encode").entered();
     let mut bytes = Vec::with_capacity(capacity);
     serde_json::to_writer(&mut bytes, value).map_err(|e| internal(&e.to_string()))?;
     Ok(bytes)

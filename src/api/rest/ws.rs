@@ -104,6 +104,8 @@ pub async fn stream(
             metrics::counter!("kinserve_http_rejected_total", "reason" => "streams").increment(1);
         })?;
     let max = state.settings.max_body_bytes;
+    // A child of the upgrade request's span, carried into the stream's task.
+    let stream = crate::telemetry::spans::stream_span("websocket");
     Ok(ws
         .read_buffer_size(READ_BUFFER)
         .write_buffer_size(WRITE_BUFFER)
@@ -112,7 +114,12 @@ pub async fn stream(
         .max_write_buffer_size(WRITE_BUFFER + 2 * max + (1 << 20))
         .max_message_size(max)
         .max_frame_size(max)
-        .on_upgrade(move |socket| run(socket, state, Target { name, client }, permit)))
+        .on_upgrade(move |socket| {
+            tracing::Instrument::instrument(
+                run(socket, state, Target { name, client }, permit),
+                stream,
+            )
+        }))
 }
 
 /// Sends a close frame, if the client takes it within [`CLOSE_TIMEOUT`].
