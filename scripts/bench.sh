@@ -130,13 +130,17 @@ else
 fi
 
 peak_rss=$(awk '/VmHWM/ {print $2}' /proc/$pid/status)
+
+# The core batch per pose on this machine, now (issue 28: the wire's cost is
+# the batch ratio to it); the server is idle meanwhile.
+core_batch_ns=$("$BIN_DIR/kinserve" bench --robot "$ROBOT" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["batch_ns_per_pose"])')
 echo
 echo "# server RSS: idle $((idle_rss / 1024)) MB; peak during the table above (up to 64 connections) $((load_rss / 1024)) MB; peak over the whole run incl. 10,000-pose batches and wrk $((peak_rss / 1024)) MB"
 
 echo
-echo "# issue-15 targets (this run)"
+echo "# issue-15 and issue-28 targets (this run)"
 python3 - "${wrk_pairs:-}" "${batch_us[rest-batch.$f16]}" "${batch_us[grpc-batch.$f16]}" \
-  "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" <<'PY'
+  "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" "$core_batch_ns" <<'PY'
 import sys
 a = sys.argv[1:]
 def ms(v):
@@ -156,6 +160,7 @@ def median(xs):
 rest_us, grpc_us = float(a[1]), float(a[2])
 gh, rest, gs, ws = (float(x) for x in a[3:7])
 idle, peak, fmt = int(a[7]), int(a[8]), a[9]
+core_ns = float(a[10])
 rows = [
     ("REST FK / healthz req/s (wrk, 64 conn)", ">= 0.9", median(rate)),
     ("REST FK p99 / healthz p99 (wrk, 64 conn)", "<= 1.2", median(p99)),
@@ -163,6 +168,8 @@ rows = [
     (f"10,000-pose batch, {fmt}, gRPC µs/pose", "<= 0.4", f"{grpc_us:.3f}"),
     (f"gRPC stream ({fmt}, 16) / gRPC health (16)", ">= 20", f"{gs / gh:.1f}"),
     (f"WebSocket ({fmt}, 16) / REST FK (16)", ">= 8", f"{ws / rest:.1f}"),
+    (f"gRPC 10k {fmt} batch / core batch, per pose", "<= 10", f"{grpc_us * 1000 / core_ns:.1f} (core {core_ns:.1f} ns)"),
+    (f"REST 10k {fmt} batch / gRPC's, per pose", "<= 2.5", f"{rest_us / grpc_us:.2f}"),
     ("RSS idle MB", "<= 30", str(idle)),
     ("RSS peak MB over the whole run", "<= 100", str(peak)),
 ]
