@@ -257,17 +257,9 @@ fn ik_reaches_an_fk_pose_and_an_unreachable_target_exits_1_with_the_best_attempt
     ]);
     assert!(ok, "{err}");
     let p = &fk["pose"];
-    let list = |v: &serde_json::Value| -> String {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.to_string())
-            .collect::<Vec<_>>()
-            .join(",")
-    };
     let q = &p["quaternion"];
     let quaternion = format!("{},{},{},{}", q["w"], q["x"], q["y"], q["z"]);
-    let position = list(&p["position"]);
+    let position = csv(&p["position"]);
     let (ok, ik, err) = run_json(&[
         "ik",
         "--robot",
@@ -283,7 +275,7 @@ fn ik_reaches_an_fk_pose_and_an_unreachable_target_exits_1_with_the_best_attempt
         (ik["converged"].as_bool(), ik["angle_unit"].as_str()),
         (Some(true), Some("deg"))
     );
-    let joints = list(&ik["joints"]);
+    let joints = csv(&ik["joints"]);
     let (ok, again, err) = run_json(&["fk", "--robot", "ur5e", "--joints", &joints, "--deg"]);
     assert!(ok, "joints within limits: {err}");
     for i in 0..3 {
