@@ -366,6 +366,9 @@ fn ik_spec(args: &IkArgs) -> Option<IkSpec> {
             IkSolutionsMode::Best
         },
         max_solutions: args.max_solutions,
+        posture: args.objectives.posture(),
+        axis_tolerances: args.objectives.axis_tolerances(),
+        free_axes: args.objectives.free_axis.clone(),
     })
 }
 

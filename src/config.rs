@@ -282,6 +282,9 @@ pub struct IkArgs {
     /// With --all, at most this many solutions (default 64; 1 to 1024).
     #[arg(long)]
     pub max_solutions: Option<u32>,
+    /// Posture and partial-pose objectives.
+    #[command(flatten)]
+    pub objectives: crate::cli_objectives::IkObjectiveArgs,
     /// Give up after this long, answering the best attempt (at most 60 s).
     #[arg(long, default_value = "1s", value_parser = parse_ik_time_limit)]
     pub time_limit: Duration,

@@ -16,6 +16,7 @@
 pub mod api;
 pub mod bench;
 pub mod cli;
+pub mod cli_objectives;
 pub mod compute;
 pub mod config;
 pub mod error;

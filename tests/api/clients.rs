@@ -49,11 +49,14 @@ async fn run_ok(cmd: &mut Command, what: &str) {
 }
 
 /// A server needing [`TOKEN`] for writes, and `expected.json` in `dir`: the
-/// FK of puma560 from the kinematics library.
+/// FK of puma560 from the kinematics library. Its IK time cap is far out of
+/// reach, so that answers the suites compare across calls cannot differ by
+/// where a loaded machine cut a solve short.
 async fn app_and_expected(dir: &Path) -> (TestApp, PathBuf) {
     let app = spawn_app_with(|c| {
         c.api_token = Some(TOKEN.into());
         c.stream_idle_timeout = STREAM_IDLE;
+        c.ik_time_limit = std::time::Duration::from_secs(30);
     })
     .await;
     let q = [0.3, -0.4, 0.6, 0.2, -0.5, 0.7];

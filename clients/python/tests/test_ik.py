@@ -194,6 +194,25 @@ def _error_cases(c: kc.Client, transport: str) -> list[tuple[str, Callable[[], A
     ]
 
 
+POSTURE_DEG = [0.0, 0.0, 0.0, -90.0, 0.0, 90.0, 45.0]
+
+
+def test_posture_and_free_axes_equal_the_server_json(client: kc.Client, server: Server) -> None:
+    """The objectives pass as keyword options on both transports (``free_axes``
+    by their REST names) and give the server's own REST answer."""
+    q = [40.0, 30.0, -20.0, -120.0, 30.0, 100.0, 10.0]
+    raw_fk = server.raw("POST", "/v1/robots/panda/fk", {"joints": q, "angle_unit": "deg"})
+    target = np.asarray(raw_fk["pose"]["matrix"], dtype=np.float64)
+    options: dict[str, Any] = {"posture": {"joints": POSTURE_DEG}, "free_axes": ["rz"]}
+    r = client.ik("panda", target, angle_unit="deg", **options)
+    raw = server.raw("POST", "/v1/robots/panda/ik", {"target": {"matrix": target.tolist()}, "angle_unit": "deg", **options})
+    assert r.converged and raw["solver"] == "numeric"
+    assert np.allclose(r.joints, raw["joints"], rtol=0, atol=EXACT)
+    with pytest.raises(kc.errors.InvalidArgument) as e:
+        client.ik("panda", target, angle_unit="deg", posture={"joints": [0.0, 0.0]})
+    assert list(e.value.fields) == ["posture.joints"]
+
+
 def test_errors_have_the_same_type_status_and_fields_on_both_transports(server: Server) -> None:
     """Over gRPC the problem kind comes from the ``google.rpc.ErrorInfo``
     every error status carries; it must be REST's problem type."""

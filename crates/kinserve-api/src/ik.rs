@@ -5,9 +5,10 @@
 //! [`crate::pb`].
 
 use kinserve_model::{
-    AngleUnit, FieldViolation, IkAnswer, IkBatchSpec, IkBranch, IkPathAnswer, IkPathSpec,
-    IkSolutionItem, IkSolutionsMode, IkSolverChoice, IkSolverUsed, IkSpec, IkTargetSpec,
-    ModelError, PathStopReason, QuaternionSpec, Result, Singularity,
+    AngleUnit, AxisTolerancesSpec, FieldViolation, IkAnswer, IkBatchSpec, IkBranch, IkPathAnswer,
+    IkPathSpec, IkSolutionItem, IkSolutionsMode, IkSolverChoice, IkSolverUsed, IkSpec,
+    IkTargetSpec, ModelError, PathStopReason, PoseAxis, PostureSpec, QuaternionSpec, Result,
+    Singularity,
 };
 
 use crate::pb;
@@ -140,6 +141,50 @@ fn solutions_from_pb(v: i32) -> Result<IkSolutionsMode> {
     }
 }
 
+/// The objective fields of a proto IK request → the model's (`free_axes[i]`
+/// names an unknown axis).
+type Objectives = (
+    Option<PostureSpec>,
+    Option<AxisTolerancesSpec>,
+    Vec<PoseAxis>,
+);
+
+fn objectives_from_pb(
+    posture: Option<pb::IkPosture>,
+    axes: Option<pb::AxisTolerances>,
+    free: &[i32],
+) -> Result<Objectives> {
+    let posture = posture.map(|p| PostureSpec {
+        joints: p.joints,
+        weights: (!p.weights.is_empty()).then_some(p.weights),
+    });
+    let axes = axes.map(|a| AxisTolerancesSpec {
+        x: a.x,
+        y: a.y,
+        z: a.z,
+        rx: a.rx,
+        ry: a.ry,
+        rz: a.rz,
+    });
+    let free = free
+        .iter()
+        .enumerate()
+        .map(|(i, v)| match pb::PoseAxis::try_from(*v) {
+            Ok(pb::PoseAxis::X) => Ok(PoseAxis::X),
+            Ok(pb::PoseAxis::Y) => Ok(PoseAxis::Y),
+            Ok(pb::PoseAxis::Z) => Ok(PoseAxis::Z),
+            Ok(pb::PoseAxis::Rx) => Ok(PoseAxis::Rx),
+            Ok(pb::PoseAxis::Ry) => Ok(PoseAxis::Ry),
+            Ok(pb::PoseAxis::Rz) => Ok(PoseAxis::Rz),
+            Ok(pb::PoseAxis::Unspecified) | Err(_) => Err(ModelError::malformed_field(
+                format!("free_axes[{i}]"),
+                "unknown axis: use POSE_AXIS_X, _Y, _Z, _RX, _RY or _RZ",
+            )),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((posture, axes, free))
+}
+
 /// A proto target → the model's target spec (shape errors under `field`).
 fn target_from_pb(
     t: Option<pb::IkTarget>,
@@ -185,6 +230,8 @@ pub fn ik_spec_from_pb(r: pb::InverseKinematicsRequest) -> Result<IkSpec> {
     if !v.is_empty() {
         return Err(ModelError::invalid(v));
     }
+    let (posture, axis_tolerances, free_axes) =
+        objectives_from_pb(r.posture, r.axis_tolerances, &r.free_axes)?;
     Ok(IkSpec {
         target,
         seed: r.seed.map(|s| s.joints),
@@ -196,6 +243,9 @@ pub fn ik_spec_from_pb(r: pb::InverseKinematicsRequest) -> Result<IkSpec> {
         solver: solver_from_pb(r.solver)?,
         solutions: solutions_from_pb(r.solutions)?,
         max_solutions: r.max_solutions,
+        posture,
+        axis_tolerances,
+        free_axes,
     })
 }
 
@@ -211,6 +261,8 @@ pub fn ik_batch_spec_from_pb(r: pb::InverseKinematicsBatchRequest) -> Result<IkB
     if !v.is_empty() {
         return Err(ModelError::invalid(v));
     }
+    let (posture, axis_tolerances, free_axes) =
+        objectives_from_pb(r.posture, r.axis_tolerances, &r.free_axes)?;
     Ok(IkBatchSpec {
         targets,
         seed: r.seed.map(|s| s.joints),
@@ -222,6 +274,9 @@ pub fn ik_batch_spec_from_pb(r: pb::InverseKinematicsBatchRequest) -> Result<IkB
         solver: solver_from_pb(r.solver)?,
         solutions: solutions_from_pb(r.solutions)?,
         max_solutions: r.max_solutions,
+        posture,
+        axis_tolerances,
+        free_axes,
     })
 }
 

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::base_tool::{check_bounded, check_finite, rigid_from_matrix};
 use crate::error::{FieldViolation, ModelError, Result};
+use crate::ik_objectives::{AxisTolerancesSpec, ObjectiveFields, PoseAxis, PostureSpec};
 use crate::ik_solutions::{
     IK_DEFAULT_MAX_SOLUTIONS, IK_MAX_BATCH_SOLUTIONS, IK_MAX_SOLUTIONS, IkBranch, IkSolutionItem,
     IkSolutionsMode, IkSolverChoice, IkSolverUsed, Singularity, analytic_solutions, pose_errors,
@@ -103,6 +104,19 @@ pub struct IkSpec {
     /// `truncated` says when more fit the limits.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_solutions: Option<u32>,
+    /// Null-space posture for redundant arms: the solution moves towards
+    /// these joints while the pose stays within the tolerance (numeric
+    /// solver only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub posture: Option<PostureSpec>,
+    /// Per-axis tolerances in the target frame, replacing `tolerance` on the
+    /// axes given (numeric solver only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_tolerances: Option<AxisTolerancesSpec>,
+    /// Axes of the target frame left free, e.g. `["rz"]` for a tool that
+    /// may spin about its axis (numeric solver only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub free_axes: Vec<PoseAxis>,
 }
 
 /// `POST /v1/robots/{name}/ik/batch`: many targets, solved in order, each
@@ -145,6 +159,15 @@ pub struct IkBatchSpec {
     /// at most 100,000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_solutions: Option<u32>,
+    /// See [`IkSpec::posture`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub posture: Option<PostureSpec>,
+    /// See [`IkSpec::axis_tolerances`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_tolerances: Option<AxisTolerancesSpec>,
+    /// See [`IkSpec::free_axes`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub free_axes: Vec<PoseAxis>,
 }
 
 object_only!(IkTargetSpec);
@@ -245,6 +268,7 @@ pub(crate) struct OptionFields<'a> {
     pub solver: IkSolverChoice,
     pub solutions: IkSolutionsMode,
     pub max_solutions: Option<u32>,
+    pub objectives: ObjectiveFields<'a>,
 }
 
 impl Robot {
@@ -373,11 +397,15 @@ impl Robot {
                 format!("must be from 0 to {IK_MAX_RESTARTS}, got {restarts}"),
             ));
         }
+        let (posture, axis_tolerances) =
+            self.check_objectives(&o.objectives, tolerance, o.angle_unit, o.position_only, v);
         let options = IkOptions {
             position_only: o.position_only,
             tolerance,
             max_iterations,
             restarts,
+            posture,
+            axis_tolerances,
             ..IkOptions::default()
         };
         (seed, options)
@@ -401,6 +429,11 @@ impl Robot {
         }
         let why_not = match self.analytic_ik() {
             Err(e) => Some(e.to_string()),
+            Ok(_) if o.objectives.numeric_only().is_some() => Some(format!(
+                "the closed form solves exact full poses and has no null space, and {} is set; \
+                 use the numeric solver",
+                o.objectives.numeric_only().unwrap_or_default()
+            )),
             Ok(_) if o.position_only => Some(
                 "the closed form solves full poses and position_only is true; \
                  use the numeric solver"
@@ -519,9 +552,11 @@ impl Robot {
         let closed_form = (in_time
             && mode.solver != IkSolverChoice::Numeric
             && t.oriented
-            && !opts.position_only)
-            .then(|| self.analytic_ik().ok())
-            .flatten();
+            && !opts.position_only
+            && opts.posture.is_none()
+            && opts.axis_tolerances.is_none())
+        .then(|| self.analytic_ik().ok())
+        .flatten();
         if let Some(ik) = closed_form {
             let (answer, q) = self.analytic_answer(ik, t, seed, mode, opts.tolerance, unit);
             if answer.converged || mode.solver == IkSolverChoice::Analytic {
@@ -597,6 +632,11 @@ impl IkSpec {
             solver: self.solver,
             solutions: self.solutions,
             max_solutions: self.max_solutions,
+            objectives: ObjectiveFields {
+                posture: self.posture.as_ref(),
+                axis_tolerances: self.axis_tolerances.as_ref(),
+                free_axes: &self.free_axes,
+            },
         }
     }
 }
@@ -613,6 +653,11 @@ impl IkBatchSpec {
             solver: self.solver,
             solutions: self.solutions,
             max_solutions: self.max_solutions,
+            objectives: ObjectiveFields {
+                posture: self.posture.as_ref(),
+                axis_tolerances: self.axis_tolerances.as_ref(),
+                free_axes: &self.free_axes,
+            },
         }
     }
 }

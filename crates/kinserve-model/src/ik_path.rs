@@ -307,6 +307,7 @@ impl IkPathSpec {
             solver: self.solver,
             solutions: IkSolutionsMode::Best,
             max_solutions: None,
+            objectives: Default::default(),
         }
     }
 }

@@ -22,6 +22,7 @@ mod base_tool;
 mod closed_form;
 mod error;
 mod ik;
+mod ik_objectives;
 mod ik_path;
 mod ik_solutions;
 mod joints;
@@ -41,6 +42,7 @@ pub use ik::{
     IK_MAX_ITERATIONS, IK_MAX_RESTARTS, IK_TOLERANCE_RANGE, IkAnswer, IkBatch, IkBatchSpec,
     IkRequest, IkSpec, IkTarget, IkTargetSpec,
 };
+pub use ik_objectives::{AxisTolerancesSpec, PoseAxis, PostureSpec};
 pub use ik_path::{
     IkPathAnswer, IkPathRequest, IkPathSpec, PATH_DEFAULT_JOINT_STEP, PATH_DEFAULT_STEP_ANGLE,
     PathStop, PathStopReason,

@@ -11,6 +11,7 @@
 mod fk;
 mod grpcurl;
 mod health;
+mod ik_objectives;
 mod ik_solutions;
 mod registry;
 mod stream;

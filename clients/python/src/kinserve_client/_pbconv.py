@@ -178,10 +178,18 @@ def set_options(msg: Message, options: Mapping[str, JSON]) -> None:
                 "(rebuild kinserve-client from the current proto/, or use transport='rest')"
             )
         if f.enum_type is not None and isinstance(value, str):
-            wanted = value.upper()
-            names = [v.name for v in f.enum_type.values if v.name == wanted or v.name.endswith("_" + wanted)]
-            value = names[0] if names else value
+            value = _enum_name(f.enum_type, value)
+        elif f.enum_type is not None and isinstance(value, list):
+            value = [_enum_name(f.enum_type, v) if isinstance(v, str) else v for v in value]
         json_format.ParseDict({f.json_name: value}, msg)
+
+
+def _enum_name(enum: Any, value: str) -> str:
+    """The proto name of a REST enum value (``"rz"`` -> ``POSE_AXIS_RZ``); an
+    unknown one is passed on for the proto parser to refuse."""
+    wanted = value.upper()
+    names = [v.name for v in enum.values if v.name == wanted or v.name.endswith("_" + wanted)]
+    return names[0] if names else value
 
 
 _IK_KNOWN = {
