@@ -617,3 +617,86 @@ fn matrices_print_one_row_per_line() {
     assert!(rows >= 6, "six Jacobian rows, one per line:\n{text}");
     stdout_json(&out);
 }
+
+#[test]
+fn ik_objectives_free_a_tilt_pull_a_posture_and_refuse_bad_axes() {
+    // A SCARA pose tilted 0.3 rad about its x axis: unreachable in full,
+    // reached with rx and ry left free (position to the tolerance).
+    let (ok, fk, err) = run_json(&[
+        "fk",
+        "--robot",
+        "scara_4dof",
+        "--joints",
+        "0.4,-0.7,0.1,0.2",
+    ]);
+    assert!(ok, "{err}");
+    let m = &fk["pose"]["matrix"];
+    let (s, c) = 0.3f64.sin_cos();
+    let mut tilted = Vec::new();
+    for i in 0..4 {
+        let row: Vec<f64> = (0..4).map(|j| m[i][j].as_f64().unwrap()).collect();
+        tilted.extend([
+            row[0],
+            c * row[1] + s * row[2],
+            -s * row[1] + c * row[2],
+            row[3],
+        ]);
+    }
+    let matrix = tilted
+        .iter()
+        .map(f64::to_string)
+        .collect::<Vec<_>>()
+        .join(",");
+    let full = [
+        "ik",
+        "--robot",
+        "scara_4dof",
+        "--matrix",
+        &matrix,
+        "--restarts",
+        "5",
+    ];
+    let (ok, _, err) = run_json(&full);
+    assert!(!ok && err.contains("did not converge"), "{err}");
+    let (ok, ik, err) = run_json(&[&full[..], &["--free-axis", "rx,ry"]].concat());
+    assert!(ok, "{err}");
+    let left = ik["orientation_error"].as_f64().unwrap();
+    assert!((left - 0.3).abs() < 1e-8, "{ik}");
+    // A posture the arm can take: named on the command line, answered as usual.
+    let (ok, ik, err) = run_json(&[
+        "ik",
+        "--robot",
+        "panda",
+        "--position",
+        "0.4,0.2,0.5",
+        "--position-only",
+        "--deg",
+        "--posture",
+        "0,0,0,-90,0,90,45",
+        "--posture-weights",
+        "1,1,1,1,1,1,0",
+    ]);
+    assert!(ok && ik["converged"] == true, "{err}");
+    // Bad objectives name what to fix.
+    let (ok, _, err) = run_json(&[
+        "ik",
+        "--robot",
+        "ur5e",
+        "--position",
+        "0.3,0,0.2",
+        "--free-axis",
+        "w",
+    ]);
+    assert!(!ok && err.contains("rx, ry or rz"), "{err}");
+    let (ok, _, err) = run_json(&[
+        "ik",
+        "--robot",
+        "panda",
+        "--position",
+        "0.4,0.2,0.5",
+        "--position-only",
+        "--posture",
+        "0,0",
+    ]);
+    assert!(!ok && err.contains("posture.joints"), "{err}");
+}
