@@ -570,8 +570,7 @@ impl Robot {
     }
 
     pub(crate) fn solver(&self) -> IkSolver<'_> {
-        let limits: Vec<Option<(f64, f64)>> = self.joints().iter().map(|j| j.limits).collect();
-        IkSolver::new(self.chain(), &limits)
+        IkSolver::new(self.chain(), self.limits())
     }
 
     /// The numeric solver's answer in the request's units; the orientation

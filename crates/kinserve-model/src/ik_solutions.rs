@@ -153,12 +153,11 @@ pub(crate) fn analytic_solutions(
     max: usize,
     unit: AngleUnit,
 ) -> (Vec<AnalyticHit>, bool) {
-    let limits: Vec<Option<(f64, f64)>> = robot.joints().iter().map(|j| j.limits).collect();
     let opts = AnalyticOptions {
         tolerance,
         max_solutions: max,
     };
-    let answer = ik.solve(target, &limits, reference, &opts);
+    let answer = ik.solve(target, robot.limits(), reference, &opts);
     let hits = answer
         .solutions
         .iter()

@@ -90,6 +90,8 @@ pub struct Robot {
     spec: RobotSpec,
     chain: Chain,
     joints: Vec<Joint>,
+    /// Each joint's limits (internal units), as the solvers take them.
+    limits: Vec<Option<(f64, f64)>>,
     /// The closed-form IK, classified once here (or why there is none).
     analytic: Result<Arc<AnalyticIk>, NotAnalytic>,
 }
@@ -130,10 +132,12 @@ impl Robot {
         };
         let chain = Chain::new(convention, &rows, base, tool);
         let analytic = AnalyticIk::new(&chain).map(Arc::new);
+        let limits = joints.iter().map(|j| j.limits).collect();
         Ok(Robot {
             spec,
             chain,
             joints,
+            limits,
             analytic,
         })
     }
@@ -175,6 +179,12 @@ impl Robot {
     /// Movable joints in table order.
     pub fn joints(&self) -> &[Joint] {
         &self.joints
+    }
+
+    /// Each joint's limits in internal units (rad / length unit; `None`:
+    /// unlimited), in the form the IK solvers take, kept from registration.
+    pub fn limits(&self) -> &[Option<(f64, f64)>] {
+        &self.limits
     }
 
     /// Length unit of this robot's positions.
