@@ -4,6 +4,7 @@
 
 use axum::Json;
 use axum::extract::State;
+use axum::response::Response;
 
 use super::AppState;
 use super::extract::{Client, JsonBody, RobotName};
@@ -153,17 +154,17 @@ pub async fn ik_path(
     RobotName(name): RobotName,
     Client(client): Client,
     JsonBody(req): JsonBody<IkPathSpec>,
-) -> ApiResult<Json<IkPathOutput>> {
+) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
     let angle_unit = req.angle_unit;
     let answer = state
         .service
         .ik_path_on_pool(client, entry.clone(), req)
         .await?;
-    Ok(Json(IkPathOutput::new(
+    Ok(super::streamed::path_answer(IkPathOutput::new(
         entry.robot.name(),
         entry.robot.length_unit(),
         angle_unit,
         answer,
-    )))
+    ))?)
 }

@@ -11,8 +11,10 @@
 //! without `Content-Length` (HTTP/1.1 chunked, or HTTP/2 DATA frames), and
 //! its bytes are exactly what serialising the whole [`FkBatchResponse`] gives.
 //!
+//! Large Cartesian paths ([`path_answer`]) stream the same way, row by row.
+//!
 //! Owns the JSON answer bodies of the REST handlers (whole, or streamed for
-//! large batches); which answers stream is decided here by size. Depends on
+//! large batches and paths); which answers stream is decided here by size. Depends on
 //! the DTOs, [`super::buffered`] (frame size, [`Holds`]) and
 //! [`crate::api::pose_format`], nothing above the adapter.
 
@@ -26,6 +28,7 @@ use http_body::{Frame, SizeHint};
 
 use super::buffered::Holds;
 use super::dto::FkBatchResponse;
+use crate::api::ik::IkPathOutput;
 use crate::api::pose_format::{FormattedPose, PoseFormat};
 use crate::error::Error;
 use crate::kinematics::Transform;
@@ -84,6 +87,38 @@ pub fn batch_answer(
         poses,
         next: 0,
         format,
+        done: false,
+    };
+    let mut resp = json_answer(Body::new(body));
+    resp.extensions_mut().insert(Holds(holds));
+    Ok(resp)
+}
+
+/// The 200 answer of a Cartesian path: serialised at once when small; when
+/// its rows (17 significant digits per joint value) reach
+/// [`STREAM_FROM_BYTES`], the rows of `points` are written a frame at a time
+/// between the rest of the answer, as for batches. The bytes are exactly
+/// what serialising the whole [`IkPathOutput`] gives.
+pub fn path_answer(mut answer: IkPathOutput) -> Result<Response, Error> {
+    let dof = answer.points.first().map_or(0, Vec::len);
+    let estimate = answer.points.len().saturating_mul(24 * dof + 2);
+    if estimate < STREAM_FROM_BYTES {
+        return json_bytes(&answer, estimate + 256).map(json_answer);
+    }
+    let rows = std::mem::take(&mut answer.points);
+    let shell = json_bytes(&answer, 512)?;
+    // The shell holds `"points":[]` once: the rows go between its brackets.
+    let marker = b"\"points\":[]";
+    let Some(at) = shell.windows(marker.len()).position(|w| w == marker) else {
+        return Err(internal("the path answer has no points field"));
+    };
+    let (head, tail) = shell.split_at(at + marker.len() - 1);
+    let holds = rows.len() * (dof * 8 + std::mem::size_of::<Vec<f64>>()) + IN_FLIGHT_BYTES;
+    let body = RowsBody {
+        head: Some(Bytes::copy_from_slice(head)),
+        tail: Bytes::copy_from_slice(tail),
+        rows,
+        next: 0,
         done: false,
     };
     let mut resp = json_answer(Body::new(body));
@@ -189,6 +224,70 @@ impl HttpBody for PosesBody {
     }
 }
 
+/// The body of a streamed path answer: the head (up to `"points":[`), the
+/// rows a frame at a time, then the tail (`],"fraction":…}`).
+struct RowsBody {
+    head: Option<Bytes>,
+    tail: Bytes,
+    rows: Vec<Vec<f64>>,
+    next: usize,
+    done: bool,
+}
+
+impl RowsBody {
+    fn frame(&mut self) -> Result<Bytes, serde_json::Error> {
+        let mut buf = Vec::with_capacity(FRAME_BYTES);
+        if let Some(head) = self.head.take() {
+            buf.extend_from_slice(&head);
+        }
+        while buf.len() + POSE_ROOM <= FRAME_BYTES {
+            let Some(row) = self.rows.get(self.next) else {
+                break;
+            };
+            if self.next > 0 {
+                buf.push(b',');
+            }
+            serde_json::to_writer(&mut buf, row)?;
+            self.next += 1;
+        }
+        if self.next >= self.rows.len() {
+            buf.extend_from_slice(&self.tail);
+            self.done = true;
+            self.rows = Vec::new();
+        }
+        Ok(Bytes::from(buf))
+    }
+}
+
+impl HttpBody for RowsBody {
+    type Data = Bytes;
+    type Error = axum::Error;
+
+    fn poll_frame(
+        self: Pin<&mut Self>,
+        _cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
+        let this = self.get_mut();
+        if this.done {
+            return Poll::Ready(None);
+        }
+        Poll::Ready(Some(
+            this.frame().map(Frame::data).map_err(axum::Error::new),
+        ))
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.done
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        // Never an exact length, so no `Content-Length` is sent.
+        let mut hint = SizeHint::new();
+        hint.set_lower(if self.done { 0 } else { self.tail.len() as u64 });
+        hint
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,6 +345,53 @@ mod tests {
                     for f in &frames {
                         assert!(f.len() <= FRAME_BYTES, "frame of {} bytes", f.len());
                     }
+                }
+            }
+        }
+    }
+
+    fn path(n: usize, stop: bool) -> IkPathOutput {
+        let points = (0..n)
+            .map(|i| (0..7).map(|j| (i * 7 + j) as f64 / 3.0 - 1.0).collect())
+            .collect();
+        let stop = stop.then(|| crate::model::PathStop {
+            step: n,
+            waypoint: 1,
+            reason: crate::model::PathStopReason::JointJump,
+            detail: "joint 4 would move 0.9 rad".into(),
+        });
+        IkPathOutput {
+            robot: "panda".into(),
+            length_unit: LengthUnit::M,
+            angle_unit: crate::model::AngleUnit::Rad,
+            points,
+            fraction: 0.5,
+            waypoints_reached: 1,
+            stop,
+        }
+    }
+
+    #[tokio::test]
+    async fn a_streamed_path_is_the_whole_path_byte_for_byte() {
+        for n in [0, 1, 50, 400, 3000] {
+            for stop in [false, true] {
+                let answer = path(n, stop);
+                let want = serde_json::to_vec(&answer).unwrap();
+                let resp = path_answer(answer).unwrap();
+                let streamed = resp.body().size_hint().exact().is_none();
+                assert_eq!(streamed, n * (24 * 7 + 2) >= STREAM_FROM_BYTES, "{n}");
+                let (holds, frames) = collected(resp).await;
+                assert_eq!(holds.is_some(), streamed, "{n}");
+                let got: Vec<u8> = frames.iter().flatten().copied().collect();
+                assert!(
+                    got == want,
+                    "{n} rows: {} bytes vs {}",
+                    got.len(),
+                    want.len()
+                );
+                if streamed && want.len() > FRAME_BYTES {
+                    assert!(frames.len() > 1, "{n} rows in one frame");
+                    assert!(frames.iter().all(|f| f.len() <= FRAME_BYTES));
                 }
             }
         }

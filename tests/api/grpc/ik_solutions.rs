@@ -420,3 +420,41 @@ async fn a_cartesian_path_is_the_same_on_rest_websocket_and_grpc() {
     let p = problem(app.post("/v1/robots/puma560/ik/path", &json!({"start": start, "angle_unit": "deg", "waypoints": [target(&far)], "max_step_length": 1e-7})).await, 413).await;
     assert_eq!(p["errors"][0]["field"], "max_step_length", "{p}");
 }
+
+#[tokio::test]
+async fn a_long_path_streams_and_keeps_every_point() {
+    let app = spawn_ik_app().await;
+    let start = [5.0, -20.0, 35.0, 10.0, 30.0, -15.0];
+    let pose = fk_ok(
+        &app,
+        "puma560",
+        json!({"joints": start, "angle_unit": "deg"}),
+    )
+    .await["pose"]
+        .clone();
+    let mut end = pose["position"].clone();
+    end[2] = json!(end[2].as_f64().unwrap() + 0.08);
+    // 8 cm in 0.02 mm steps: 4,000 steps, about 0.4 MB of JSON.
+    let body = json!({"start": start, "angle_unit": "deg", "max_step_length": 2e-5,
+        "waypoints": [{"position": end, "quaternion": pose["quaternion"]}]});
+    let r = app.post("/v1/robots/puma560/ik/path", &body).await;
+    assert_eq!(r.status(), 200);
+    // Streamed: no Content-Length, the body written as the connection takes it.
+    assert!(
+        r.headers().get("content-length").is_none(),
+        "{:?}",
+        r.headers()
+    );
+    let rest: Value = r.json().await.unwrap();
+    assert_eq!(
+        (&rest["fraction"], &rest["stop"]),
+        (&json!(1.0), &Value::Null),
+        "{}",
+        rest["stop"]
+    );
+    let points = rest["points"].as_array().unwrap();
+    assert_eq!(points.len(), 4_001);
+    // The same points as the WebSocket's (buffered) answer.
+    let ws = ws_one(&app, "puma560", json!({"id": "long", "ik_path": body})).await;
+    assert_eq!(ws["points"], rest["points"]);
+}
