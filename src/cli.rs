@@ -431,6 +431,9 @@ fn ik_path(args: &IkPathArgs) -> ExitCode {
         max_joint_step: args.max_joint_step,
         tolerance: args.tolerance,
         solver: solver(args.solver),
+        posture: args.objectives.posture(),
+        axis_tolerances: args.objectives.axis_tolerances(),
+        free_axes: args.objectives.free_axis.clone(),
         ..IkPathSpec::default()
     };
     let request = match robot.check_ik_path(&spec, 10_000) {

@@ -222,6 +222,9 @@ pub struct IkPathArgs {
     /// Which solver runs per step.
     #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
     pub solver: SolverArg,
+    /// Posture and partial-pose objectives of each step.
+    #[command(flatten)]
+    pub objectives: crate::cli_objectives::IkObjectiveArgs,
     /// Give up after this long (the steps so far are printed; at most 60 s).
     #[arg(long, default_value = "10s", value_parser = parse_ik_time_limit)]
     pub time_limit: Duration,

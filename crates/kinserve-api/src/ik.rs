@@ -292,6 +292,8 @@ pub fn ik_path_spec_from_pb(r: pb::InverseKinematicsPathRequest) -> Result<IkPat
     if !v.is_empty() {
         return Err(ModelError::invalid(v));
     }
+    let (posture, axis_tolerances, free_axes) =
+        objectives_from_pb(r.posture, r.axis_tolerances, &r.free_axes)?;
     Ok(IkPathSpec {
         start: r.start.map(|s| s.joints).unwrap_or_default(),
         waypoints,
@@ -304,6 +306,9 @@ pub fn ik_path_spec_from_pb(r: pb::InverseKinematicsPathRequest) -> Result<IkPat
         solver: solver_from_pb(r.solver)?,
         max_iterations: r.max_iterations,
         restarts: r.restarts,
+        posture,
+        axis_tolerances,
+        free_axes,
     })
 }
 

@@ -26,6 +26,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{FieldViolation, ModelError, Result};
 use crate::ik::{IkTarget, IkTargetSpec, OptionFields, check_target};
+use crate::ik_objectives::{AxisTolerancesSpec, ObjectiveFields, PoseAxis, PostureSpec};
 use crate::ik_solutions::{IkSolutionsMode, IkSolverChoice};
 use crate::robot::{FkOptions, Robot};
 use crate::spec::{AngleUnit, LengthUnit, object_only};
@@ -81,6 +82,15 @@ pub struct IkPathSpec {
     /// the previous answer; restarts would jump branches).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restarts: Option<u32>,
+    /// Null-space posture kept along the path (see [`crate::IkSpec::posture`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub posture: Option<PostureSpec>,
+    /// Per-axis tolerances of each step (see [`crate::IkSpec::axis_tolerances`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_tolerances: Option<AxisTolerancesSpec>,
+    /// Axes of each step's target frame left free (see [`crate::IkSpec::free_axes`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub free_axes: Vec<PoseAxis>,
 }
 
 object_only!(IkPathSpec);
@@ -307,7 +317,11 @@ impl IkPathSpec {
             solver: self.solver,
             solutions: IkSolutionsMode::Best,
             max_solutions: None,
-            objectives: Default::default(),
+            objectives: ObjectiveFields {
+                posture: self.posture.as_ref(),
+                axis_tolerances: self.axis_tolerances.as_ref(),
+                free_axes: &self.free_axes,
+            },
         }
     }
 }
@@ -489,7 +503,9 @@ impl IkPathRequest<'_> {
     /// `unreachable`, or `joint_limits` when the closed form reaches the pose
     /// only outside the limits.
     fn unreached(&self, k: usize, pose: &Transform, error: f64) -> PathStop {
+        // With a partial pose the closed form (exact full poses) cannot tell.
         let outside = self.oriented
+            && self.options.axis_tolerances.is_none()
             && self.robot.analytic_ik().is_ok_and(|ik| {
                 let opts = kinserve_kinematics::analytic_ik::AnalyticOptions {
                     tolerance: self.options.tolerance,

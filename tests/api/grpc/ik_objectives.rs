@@ -310,3 +310,74 @@ async fn bad_objectives_name_the_same_field_everywhere() {
         (Code::InvalidArgument, vec!["free_axes[0]".to_string()])
     );
 }
+
+#[tokio::test]
+async fn a_path_keeps_its_posture_and_is_the_same_on_rest_and_grpc() {
+    let app = spawn_ik_app().await;
+    let mut c = app.grpc_client().await;
+    let panda = model("panda");
+    let start = [10.0, 20.0, -10.0, -100.0, 10.0, 110.0, 30.0];
+    let goal = fk_deg(&panda, &start);
+    let quaternion = fk_ok(&app, "panda", json!({"joints": start, "angle_unit": "deg"})).await
+        ["pose"]["quaternion"]
+        .clone();
+    let end = [goal[0][3], goal[1][3], goal[2][3] - 0.05];
+    let base = json!({"start": start, "angle_unit": "deg", "max_step_length": 0.01,
+        "waypoints": [{"position": end, "quaternion": quaternion}]});
+    let mut pulled = base.clone();
+    pulled["posture"] = json!({"joints": POSTURE});
+    let plain = rest_ok(&app, "/v1/robots/panda/ik/path", &base).await;
+    let rest = rest_ok(&app, "/v1/robots/panda/ik/path", &pulled).await;
+    assert_eq!(
+        (&rest["fraction"], &plain["fraction"]),
+        (&json!(1.0), &json!(1.0)),
+        "{rest}"
+    );
+    // Every step reaches its point of the line; the last the waypoint.
+    let last = floats(rest["points"].as_array().unwrap().last().unwrap());
+    let reached = fk_deg(&panda, &last);
+    for (i, e) in end.iter().enumerate() {
+        assert!((reached[i][3] - e).abs() < POSE_TOL, "{rest}");
+    }
+    let err = |v: &Value| posture_error(&floats(v["points"].as_array().unwrap().last().unwrap()));
+    assert!(
+        err(&rest) < err(&plain),
+        "posture {} vs {}",
+        err(&rest),
+        err(&plain)
+    );
+    let q = &quaternion;
+    let req = pb::InverseKinematicsPathRequest {
+        robot: "panda".into(),
+        start: Some(pb::JointConfiguration {
+            joints: start.to_vec(),
+        }),
+        waypoints: vec![pb::IkTarget {
+            position: Some(pb::Vector3 {
+                x: end[0],
+                y: end[1],
+                z: end[2],
+            }),
+            quaternion: Some(pb::Quaternion {
+                w: q["w"].as_f64().unwrap(),
+                x: q["x"].as_f64().unwrap(),
+                y: q["y"].as_f64().unwrap(),
+                z: q["z"].as_f64().unwrap(),
+            }),
+            ..Default::default()
+        }],
+        angle_unit: pb::AngleUnit::Deg as i32,
+        max_step_length: Some(0.01),
+        posture: Some(grpc_posture()),
+        ..Default::default()
+    };
+    let g = c.inverse_kinematics_path(req).await.unwrap().into_inner();
+    let points: Vec<Vec<f64>> = g.points.into_iter().map(|p| p.joints).collect();
+    let want: Vec<Vec<f64>> = rest["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(floats)
+        .collect();
+    assert_eq!(points, want, "gRPC");
+}
