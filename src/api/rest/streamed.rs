@@ -82,13 +82,9 @@ pub fn batch_answer(
         return Err(internal("the batch answer does not end with its poses"));
     };
     let holds = poses.len() * std::mem::size_of::<Transform>() + IN_FLIGHT_BYTES;
-    let body = PosesBody {
-        head: Some(Bytes::copy_from_slice(head)),
-        poses,
-        next: 0,
-        format,
-        done: false,
-    };
+    let body = ItemsBody::new(head, b"]}", poses, move |buf, pose: &Transform| {
+        serde_json::to_writer(buf, &FormattedPose::new(format, *pose))
+    });
     let mut resp = json_answer(Body::new(body));
     resp.extensions_mut().insert(Holds(holds));
     Ok(resp)
@@ -114,13 +110,9 @@ pub fn path_answer(mut answer: IkPathOutput) -> Result<Response, Error> {
     };
     let (head, tail) = shell.split_at(at + marker.len() - 1);
     let holds = rows.len() * (dof * 8 + std::mem::size_of::<Vec<f64>>()) + IN_FLIGHT_BYTES;
-    let body = RowsBody {
-        head: Some(Bytes::copy_from_slice(head)),
-        tail: Bytes::copy_from_slice(tail),
-        rows,
-        next: 0,
-        done: false,
-    };
+    let body = ItemsBody::new(head, tail, rows, |buf, row: &Vec<f64>| {
+        serde_json::to_writer(buf, row)
+    });
     let mut resp = json_answer(Body::new(body));
     resp.extensions_mut().insert(Holds(holds));
     Ok(resp)
@@ -155,111 +147,63 @@ pub(super) fn json_answer(body: impl Into<Body>) -> Response {
         .into_response()
 }
 
-/// The body of a streamed batch answer: the answer's head (`{…,"poses":[`,
-/// or `"matrices":[` or `"positions":[`),
-/// then the poses a frame at a time, then `]}`.
-struct PosesBody {
-    head: Option<Bytes>,
-    poses: Vec<Transform>,
-    next: usize,
-    format: PoseFormat,
-    done: bool,
-}
-
-impl PosesBody {
-    /// The next frame: the head (first time), poses up to [`FRAME_BYTES`],
-    /// and the closing `]}` after the last pose.
-    fn frame(&mut self) -> Result<Bytes, serde_json::Error> {
-        let mut buf = Vec::with_capacity(FRAME_BYTES);
-        if let Some(head) = self.head.take() {
-            buf.extend_from_slice(&head);
-        }
-        while buf.len() + POSE_ROOM <= FRAME_BYTES {
-            let Some(pose) = self.poses.get(self.next) else {
-                break;
-            };
-            if self.next > 0 {
-                buf.push(b',');
-            }
-            serde_json::to_writer(&mut buf, &FormattedPose::new(self.format, *pose))?;
-            self.next += 1;
-        }
-        if self.next >= self.poses.len() {
-            buf.extend_from_slice(b"]}");
-            self.done = true;
-            self.poses = Vec::new();
-        }
-        Ok(Bytes::from(buf))
-    }
-}
-
-impl HttpBody for PosesBody {
-    type Data = Bytes;
-    type Error = axum::Error;
-
-    fn poll_frame(
-        self: Pin<&mut Self>,
-        _cx: &mut Context<'_>,
-    ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
-        let this = self.get_mut();
-        if this.done {
-            return Poll::Ready(None);
-        }
-        Poll::Ready(Some(
-            this.frame().map(Frame::data).map_err(axum::Error::new),
-        ))
-    }
-
-    fn is_end_stream(&self) -> bool {
-        self.done
-    }
-
-    fn size_hint(&self) -> SizeHint {
-        // At least the rest of the poses' brackets and the closing `]}`:
-        // never an exact length, so no `Content-Length` is sent.
-        let left = self.poses.len().saturating_sub(self.next) as u64;
-        let mut hint = SizeHint::new();
-        hint.set_lower(if self.done { 0 } else { 2 + 2 * left });
-        hint
-    }
-}
-
-/// The body of a streamed path answer: the head (up to `"points":[`), the
-/// rows a frame at a time, then the tail (`],"fraction":…}`).
-struct RowsBody {
+/// The body of a streamed answer: its head (`{…,"poses":[`, `"matrices":[`,
+/// `"positions":[` or `{…,"points":[`), then the items a frame at a time,
+/// each written by `write`, then its tail (`]}`, or `],"fraction":…}`).
+struct ItemsBody<T, W> {
     head: Option<Bytes>,
     tail: Bytes,
-    rows: Vec<Vec<f64>>,
+    items: Vec<T>,
+    write: W,
     next: usize,
     done: bool,
 }
 
-impl RowsBody {
+impl<T, W> ItemsBody<T, W>
+where
+    W: FnMut(&mut Vec<u8>, &T) -> Result<(), serde_json::Error>,
+{
+    fn new(head: &[u8], tail: &[u8], items: Vec<T>, write: W) -> Self {
+        ItemsBody {
+            head: Some(Bytes::copy_from_slice(head)),
+            tail: Bytes::copy_from_slice(tail),
+            items,
+            write,
+            next: 0,
+            done: false,
+        }
+    }
+
+    /// The next frame: the head (first time), items up to [`FRAME_BYTES`],
+    /// and the tail after the last item.
     fn frame(&mut self) -> Result<Bytes, serde_json::Error> {
         let mut buf = Vec::with_capacity(FRAME_BYTES);
         if let Some(head) = self.head.take() {
             buf.extend_from_slice(&head);
         }
         while buf.len() + POSE_ROOM <= FRAME_BYTES {
-            let Some(row) = self.rows.get(self.next) else {
+            let Some(item) = self.items.get(self.next) else {
                 break;
             };
             if self.next > 0 {
                 buf.push(b',');
             }
-            serde_json::to_writer(&mut buf, row)?;
+            (self.write)(&mut buf, item)?;
             self.next += 1;
         }
-        if self.next >= self.rows.len() {
+        if self.next >= self.items.len() {
             buf.extend_from_slice(&self.tail);
             self.done = true;
-            self.rows = Vec::new();
+            self.items = Vec::new();
         }
         Ok(Bytes::from(buf))
     }
 }
 
-impl HttpBody for RowsBody {
+impl<T: Unpin, W> HttpBody for ItemsBody<T, W>
+where
+    W: FnMut(&mut Vec<u8>, &T) -> Result<(), serde_json::Error> + Unpin,
+{
     type Data = Bytes;
     type Error = axum::Error;
 
@@ -281,9 +225,15 @@ impl HttpBody for RowsBody {
     }
 
     fn size_hint(&self) -> SizeHint {
-        // Never an exact length, so no `Content-Length` is sent.
+        // At least the tail and two bytes per item left: never an exact
+        // length, so no `Content-Length` is sent.
+        let left = self.items.len().saturating_sub(self.next) as u64;
         let mut hint = SizeHint::new();
-        hint.set_lower(if self.done { 0 } else { self.tail.len() as u64 });
+        hint.set_lower(if self.done {
+            0
+        } else {
+            self.tail.len() as u64 + 2 * left
+        });
         hint
     }
 }
