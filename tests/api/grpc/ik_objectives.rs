@@ -40,6 +40,19 @@ fn posture_error(q: &[f64]) -> f64 {
         .sum()
 }
 
+/// A gRPC IK request for the 4×4 `goal`.
+fn goal_request(
+    robot: &str,
+    goal: &[[f64; 4]; 4],
+    unit: pb::AngleUnit,
+) -> pb::InverseKinematicsRequest {
+    let target = pb::IkTarget {
+        matrix: Some(matrix_pb(&json!({ "matrix": goal }))),
+        ..Default::default()
+    };
+    ik_request(robot, target, unit)
+}
+
 fn grpc_posture() -> pb::IkPosture {
     pb::IkPosture {
         joints: POSTURE.to_vec(),
@@ -81,14 +94,7 @@ async fn a_posture_pulls_a_redundant_arm_and_is_the_same_on_every_door() {
             "posture": {"joints": POSTURE}});
         let batch = rest_ok(&app, "/v1/robots/panda/ik/batch", &batch).await;
         assert_eq!(batch["results"][0]["joints"], b["joints"], "batch");
-        let mut req = ik_request(
-            "panda",
-            pb::IkTarget {
-                matrix: Some(matrix_pb(&json!({"matrix": goal}))),
-                ..Default::default()
-            },
-            pb::AngleUnit::Deg,
-        );
+        let mut req = goal_request("panda", &goal, pb::AngleUnit::Deg);
         req.posture = Some(grpc_posture());
         let g = c
             .inverse_kinematics(req.clone())
@@ -151,14 +157,7 @@ async fn a_tool_free_to_spin_reaches_the_rest_of_the_pose_on_every_door() {
     }
     let ws = ws_one(&app, "puma560", json!({"id": 2, "ik": body})).await;
     assert_eq!(ws["joints"], rest["joints"], "WebSocket");
-    let mut req = ik_request(
-        "puma560",
-        pb::IkTarget {
-            matrix: Some(matrix_pb(&json!({"matrix": goal}))),
-            ..Default::default()
-        },
-        pb::AngleUnit::Deg,
-    );
+    let mut req = goal_request("puma560", &goal, pb::AngleUnit::Deg);
     req.free_axes = vec![pb::PoseAxis::Rz as i32];
     req.axis_tolerances = Some(pb::AxisTolerances {
         x: Some(1e-9),
@@ -194,14 +193,7 @@ async fn a_tilt_a_scara_cannot_make_is_reached_once_left_free() {
     // What is left of the rotation is the tilt.
     let left = rest["orientation_error"].as_f64().unwrap();
     assert!((left - 0.3).abs() < POSE_TOL, "{rest}");
-    let mut req = ik_request(
-        "scara_4dof",
-        pb::IkTarget {
-            matrix: Some(matrix_pb(&json!({"matrix": goal}))),
-            ..Default::default()
-        },
-        pb::AngleUnit::Rad,
-    );
+    let mut req = goal_request("scara_4dof", &goal, pb::AngleUnit::Rad);
     req.free_axes = vec![pb::PoseAxis::Rx as i32, pb::PoseAxis::Ry as i32];
     let g = c.inverse_kinematics(req).await.unwrap().into_inner();
     assert_eq!(g.result.unwrap().joints, floats(&rest["joints"]), "gRPC");
@@ -278,14 +270,7 @@ async fn bad_objectives_name_the_same_field_everywhere() {
         assert_eq!(p["errors"][0]["field"], field, "REST {body}: {p}");
         let ws = ws_one(&app, "panda", json!({"id": 1, "ik": body})).await;
         assert_eq!(ws["error"]["errors"][0]["field"], field, "WebSocket {ws}");
-        let mut req = ik_request(
-            "panda",
-            pb::IkTarget {
-                matrix: Some(matrix_pb(&json!({"matrix": goal}))),
-                ..Default::default()
-            },
-            pb::AngleUnit::Deg,
-        );
+        let mut req = goal_request("panda", &goal, pb::AngleUnit::Deg);
         set(&mut req);
         let s = c.inverse_kinematics(req).await.unwrap_err();
         assert_eq!(s.code(), Code::InvalidArgument, "gRPC {body}");
@@ -295,14 +280,7 @@ async fn bad_objectives_name_the_same_field_everywhere() {
     let body = json!({"target": {"matrix": goal}, "free_axes": ["w"]});
     let p = problem(app.post("/v1/robots/panda/ik", &body).await, 400).await;
     assert!(p["detail"].as_str().unwrap().contains("free_axes"), "{p}");
-    let mut req = ik_request(
-        "panda",
-        pb::IkTarget {
-            matrix: Some(matrix_pb(&json!({"matrix": goal}))),
-            ..Default::default()
-        },
-        pb::AngleUnit::Rad,
-    );
+    let mut req = goal_request("panda", &goal, pb::AngleUnit::Rad);
     req.free_axes = vec![99];
     let s = c.inverse_kinematics(req).await.unwrap_err();
     assert_eq!(
