@@ -3,8 +3,10 @@
 //! verification of every pose against the core library.
 
 mod targets;
+mod tls;
 
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -67,6 +69,14 @@ impl Target {
 
     fn is_batch(self) -> bool {
         matches!(self, Target::RestBatch | Target::GrpcBatch)
+    }
+
+    /// Loads the gRPC listener (and so may go over TLS with `--tls-ca`).
+    pub fn is_grpc(self) -> bool {
+        matches!(
+            self,
+            Target::Grpc | Target::GrpcBatch | Target::GrpcStream | Target::GrpcHealth
+        )
     }
 }
 
@@ -173,6 +183,15 @@ pub struct LoadArgs {
     /// Stop after this many requests (0: no limit); for smoke tests.
     #[arg(long, default_value_t = 0)]
     pub max_requests: u64,
+    /// PEM file of the CA that signed the server's certificate: the gRPC
+    /// targets connect over TLS (a server started with --tls-cert and
+    /// --tls-key). The REST and WebSocket targets have no TLS here
+    /// (`scripts/bench.sh` measures REST over TLS with wrk).
+    #[arg(long)]
+    pub tls_ca: Option<PathBuf>,
+    /// The name the server's certificate must carry (with --tls-ca).
+    #[arg(long, default_value = "localhost")]
+    pub tls_server_name: String,
 }
 
 /// Latency summary in microseconds.
@@ -309,6 +328,8 @@ impl Tally {
 struct Plan {
     args: LoadArgs,
     robot: Option<Robot>,
+    /// TLS of the gRPC channels (`--tls-ca`).
+    tls: Option<tls::GrpcTls>,
     /// Measurement window.
     measure_from: Instant,
     measure_until: Instant,
@@ -382,16 +403,14 @@ fn verify_pose(robot: &Robot, q: &[f64], values: &[f64], format: PoseFormat) -> 
     }
 }
 
-/// Fetches the robot model over REST (for configurations and verification).
-async fn fetch_robot(http_addr: &str, name: &str) -> Result<Robot, String> {
-    let url = format!("http://{http_addr}/v1/robots/{name}");
-    let resp = reqwest::get(&url)
-        .await
-        .map_err(|e| format!("GET {url}: {e}"))?;
-    if !resp.status().is_success() {
-        return Err(format!("GET {url}: HTTP {}", resp.status()));
-    }
-    let spec: RobotSpec = resp.json().await.map_err(|e| format!("GET {url}: {e}"))?;
+/// Fetches the robot model: over gRPC (`GetRobot`, through the TLS of the
+/// gRPC targets when set) for a gRPC target, over REST otherwise.
+async fn fetch_robot(args: &LoadArgs, tls: Option<&tls::GrpcTls>) -> Result<Robot, String> {
+    let spec = if args.target.is_grpc() {
+        fetch_spec_grpc(&args.grpc_addr, &args.robot, tls).await?
+    } else {
+        fetch_spec_rest(&args.http_addr, &args.robot).await?
+    };
     Robot::from_spec(
         spec,
         &ModelLimits {
@@ -400,6 +419,36 @@ async fn fetch_robot(http_addr: &str, name: &str) -> Result<Robot, String> {
         },
     )
     .map_err(|e| e.to_string())
+}
+
+async fn fetch_spec_rest(http_addr: &str, name: &str) -> Result<RobotSpec, String> {
+    let url = format!("http://{http_addr}/v1/robots/{name}");
+    let resp = reqwest::get(&url)
+        .await
+        .map_err(|e| format!("GET {url}: {e}"))?;
+    if !resp.status().is_success() {
+        return Err(format!("GET {url}: HTTP {}", resp.status()));
+    }
+    resp.json().await.map_err(|e| format!("GET {url}: {e}"))
+}
+
+async fn fetch_spec_grpc(
+    grpc_addr: &str,
+    name: &str,
+    tls: Option<&tls::GrpcTls>,
+) -> Result<RobotSpec, String> {
+    use kinserve_api::pb;
+    let what = format!("GetRobot {name:?} at {grpc_addr}");
+    let channel = tls::channel(grpc_addr, tls).await?;
+    let answer = pb::kinematics_service_client::KinematicsServiceClient::new(channel)
+        .get_robot(pb::GetRobotRequest { name: name.into() })
+        .await
+        .map_err(|s| format!("{what}: {} {}", s.code(), s.message()))?
+        .into_inner();
+    let robot = answer
+        .robot
+        .ok_or(format!("{what}: no robot in the answer"))?;
+    RobotSpec::try_from(robot).map_err(|e| format!("{what}: {e}"))
 }
 
 /// Most workers (`--concurrency`) and messages in flight per stream (`--pipeline`).
@@ -429,15 +478,27 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
             "--rate must be a number of requests per second from {MIN_RATE} to {MAX_RATE:e}"
         ));
     }
+    let tls = match &args.tls_ca {
+        None => None,
+        Some(_) if !args.target.is_grpc() => {
+            return Err(format!(
+                "--tls-ca: only the gRPC targets connect over TLS, not {}; \
+                 measure REST over TLS with wrk https://… (scripts/bench.sh does)",
+                args.target.name()
+            ));
+        }
+        Some(ca) => Some(tls::GrpcTls::new(ca, &args.tls_server_name)?),
+    };
     let robot = match args.target {
         Target::RestHealth | Target::GrpcHealth => None,
-        _ => Some(fetch_robot(&args.http_addr, &args.robot).await?),
+        _ => Some(fetch_robot(&args, tls.as_ref()).await?),
     };
     let start = Instant::now() + Duration::from_millis(50);
     let plan = Arc::new(Plan {
         measure_from: start + args.warmup,
         measure_until: start + args.warmup + args.duration,
         robot,
+        tls,
         args: args.clone(),
     });
     let mut handles = Vec::with_capacity(args.concurrency);

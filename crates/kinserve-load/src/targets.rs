@@ -73,13 +73,9 @@ fn rest_client() -> reqwest::Client {
 }
 
 async fn grpc_client(
-    addr: &str,
+    plan: &Plan,
 ) -> Result<KinematicsServiceClient<tonic::transport::Channel>, String> {
-    let ch = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
-        .map_err(|e| e.to_string())?
-        .connect()
-        .await
-        .map_err(|e| format!("connect {addr}: {e}"))?;
+    let ch = crate::tls::channel(&plan.args.grpc_addr, plan.tls.as_ref()).await?;
     Ok(KinematicsServiceClient::new(ch).max_decoding_message_size(usize::MAX))
 }
 
@@ -254,16 +250,12 @@ async fn unary_worker(
         Target::Grpc | Target::GrpcBatch | Target::GrpcHealth
     );
     let mut grpc = if needs_grpc && args.target != Target::GrpcHealth {
-        Some(grpc_client(&args.grpc_addr).await?)
+        Some(grpc_client(plan).await?)
     } else {
         None
     };
     let mut health = if args.target == Target::GrpcHealth {
-        let ch = tonic::transport::Endpoint::from_shared(format!("http://{}", args.grpc_addr))
-            .map_err(|e| e.to_string())?
-            .connect()
-            .await
-            .map_err(|e| e.to_string())?;
+        let ch = crate::tls::channel(&args.grpc_addr, plan.tls.as_ref()).await?;
         Some(tonic_health::pb::health_client::HealthClient::new(ch))
     } else {
         None
@@ -541,8 +533,9 @@ async fn ws_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), Str
 
 /// A gRPC bidirectional stream: the worker writes requests into it directly;
 /// a reader task turns answers into replies.
-async fn grpc_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), String> {
-    let mut client = grpc_client(&args.grpc_addr).await?;
+async fn grpc_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
+    let args = &plan.args;
+    let mut client = grpc_client(plan).await?;
     let (req_tx, req_rx) =
         tokio::sync::mpsc::channel::<pb::StreamForwardKinematicsRequest>(args.pipeline);
     let response = client
@@ -599,7 +592,7 @@ async fn stream_worker(
 
     let (outbound, mut reply_rx) = match args.target {
         Target::Ws => ws_transport(args).await?,
-        _ => grpc_transport(args).await?,
+        _ => grpc_transport(plan).await?,
     };
 
     loop {

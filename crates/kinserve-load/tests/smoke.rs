@@ -21,43 +21,52 @@ impl Drop for TestApp {
 
 /// Starts the server with the test configuration and waits until `/readyz` is 200.
 async fn spawn_app() -> TestApp {
-    let tmp = tempfile::tempdir().expect("temp dir");
-    // One load generator is one client: its share is the whole of each
-    // budget here (the shares are tested in the server's hostile tests).
-    let config = ServeConfig {
-        client_share_percent: 100,
-        ..ServeConfig::for_tests(tmp.path().to_path_buf())
-    };
-    let app = App::build(config).await.expect("server builds");
-    let http = format!("http://127.0.0.1:{}", app.http_port());
-    let grpc = format!("http://127.0.0.1:{}", app.grpc_port());
-    let shutdown = app.shutdown_handle();
-    tokio::spawn(app.run_until_stopped());
+    let app = spawn_app_with(|_| {}).await;
+    let http = app.http.clone();
     let client = reqwest::Client::new();
     for _ in 0..500 {
         if let Ok(r) = client.get(format!("{http}/readyz")).send().await
             && r.status() == 200
         {
-            return TestApp {
-                http,
-                grpc,
-                _tmp: tmp,
-                shutdown,
-            };
+            return app;
         }
         tokio::time::sleep(std::time::Duration::from_millis(10)).await;
     }
     panic!("server not ready at {http}");
 }
 
-/// Runs `kinserve-load --verify` on one target and asserts a clean report:
-/// everything answered, no error, the expected number of poses.
-async fn run_clean(app: &TestApp, target: &str, robot: &str, pose_format: &str) {
+/// Starts the server with the test configuration changed by `configure`; its
+/// listeners are bound when this returns (connections wait in the backlog
+/// until it runs).
+async fn spawn_app_with(configure: impl FnOnce(&mut ServeConfig)) -> TestApp {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    // One load generator is one client: its share is the whole of each
+    // budget here (the shares are tested in the server's hostile tests).
+    let mut config = ServeConfig {
+        client_share_percent: 100,
+        ..ServeConfig::for_tests(tmp.path().join("data"))
+    };
+    configure(&mut config);
+    let app = App::build(config).await.expect("server builds");
+    let http = format!("http://127.0.0.1:{}", app.http_port());
+    let grpc = format!("http://127.0.0.1:{}", app.grpc_port());
+    let shutdown = app.shutdown_handle();
+    tokio::spawn(app.run_until_stopped());
+    TestApp {
+        http,
+        grpc,
+        _tmp: tmp,
+        shutdown,
+    }
+}
+
+/// `kinserve-load` aimed at `app`: a short closed-loop run of at most 200
+/// requests over two connections, verified, reported as JSON.
+fn load_command(app: &TestApp, target: &str, robot: &str) -> tokio::process::Command {
     let http = app.http.trim_start_matches("http://");
     let grpc = app.grpc.trim_start_matches("http://");
-    let what = format!("{target}/{robot}/{pose_format}");
-    let out = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"))
-        .args(["--target", target, "--robot", robot, "--concurrency", "2"])
+    let mut cmd = tokio::process::Command::new(env!("CARGO_BIN_EXE_kinserve-load"));
+    cmd.args(["--target", target, "--robot", robot, "--concurrency", "2"])
         .args([
             "--duration",
             "400ms",
@@ -66,12 +75,40 @@ async fn run_clean(app: &TestApp, target: &str, robot: &str, pose_format: &str) 
             "--batch-size",
             "50",
         ])
-        .args(["--pipeline", "8", "--max-requests", "200"])
-        .args(["--pose-format", pose_format, "--verify", "--json"])
-        .args(["--http-addr", http, "--grpc-addr", grpc])
-        .output()
-        .await
-        .expect("kinserve-load runs");
+        .args([
+            "--pipeline",
+            "8",
+            "--max-requests",
+            "200",
+            "--verify",
+            "--json",
+        ])
+        .args(["--http-addr", http, "--grpc-addr", grpc]);
+    cmd
+}
+
+/// Runs `kinserve-load --verify` on one target and asserts a clean report:
+/// everything answered, no error, the expected number of poses.
+async fn run_clean(app: &TestApp, target: &str, robot: &str, pose_format: &str) {
+    let mut cmd = load_command(app, target, robot);
+    cmd.args(["--pose-format", pose_format]);
+    assert_clean_report(
+        cmd,
+        &format!("{target}/{robot}/{pose_format}"),
+        target,
+        pose_format,
+    )
+    .await;
+}
+
+/// Runs `cmd` (from [`load_command`]) and asserts a clean report.
+async fn assert_clean_report(
+    mut cmd: tokio::process::Command,
+    what: &str,
+    target: &str,
+    pose_format: &str,
+) {
+    let out = cmd.output().await.expect("kinserve-load runs");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -196,4 +233,66 @@ async fn open_loop_mode_runs_and_an_unknown_robot_fails_the_run() {
         .await
         .expect("runs");
     assert!(!out.status.success());
+}
+
+/// A test CA (PEM) and a server certificate for `localhost` signed by it,
+/// written as `ca.pem`, `server.crt` and `server.key` in `dir`.
+fn write_test_certificates(dir: &std::path::Path) {
+    use rcgen::{
+        BasicConstraints, CertificateParams, CertifiedIssuer, DnType, IsCa, KeyPair,
+        KeyUsagePurpose,
+    };
+    let mut ca = CertificateParams::new(vec![]).unwrap();
+    ca.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
+    ca.distinguished_name
+        .push(DnType::CommonName, "kinserve-load test CA");
+    ca.key_usages = vec![KeyUsagePurpose::KeyCertSign];
+    let issuer = CertifiedIssuer::self_signed(ca, KeyPair::generate().unwrap()).unwrap();
+    std::fs::write(dir.join("ca.pem"), issuer.pem()).unwrap();
+    let leaf = CertificateParams::new(vec!["localhost".to_string()]).unwrap();
+    let key = KeyPair::generate().unwrap();
+    let cert = leaf.signed_by(&key, &issuer).unwrap();
+    std::fs::write(dir.join("server.crt"), cert.pem()).unwrap();
+    std::fs::write(dir.join("server.key"), key.serialize_pem()).unwrap();
+}
+
+/// With `--tls-ca` every gRPC target runs clean against a server with
+/// `--tls-cert` / `--tls-key` (the robot fetched over gRPC through the same
+/// TLS); a CA that did not sign the server's certificate fails the run; a
+/// REST target with `--tls-ca` is refused naming the flag.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_grpc_targets_run_clean_over_tls_with_the_servers_ca() {
+    let certs = tempfile::tempdir().unwrap();
+    write_test_certificates(certs.path());
+    let dir = certs.path().to_path_buf();
+    let app = spawn_app_with(|c| {
+        c.tls.tls_cert = Some(dir.join("server.crt"));
+        c.tls.tls_key = Some(dir.join("server.key"));
+    })
+    .await;
+    let ca = certs.path().join("ca.pem");
+    for target in ["grpc-health", "grpc", "grpc-batch", "grpc-stream"] {
+        let mut cmd = load_command(&app, target, "puma560");
+        cmd.arg("--tls-ca").arg(&ca);
+        assert_clean_report(cmd, &format!("{target} over TLS"), target, "full").await;
+    }
+    // Plain gRPC to the TLS listener, and TLS trusting another CA, both fail.
+    let other = tempfile::tempdir().unwrap();
+    write_test_certificates(other.path());
+    for tls_ca in [None, Some(other.path().join("ca.pem"))] {
+        let mut cmd = load_command(&app, "grpc", "puma560");
+        if let Some(ca) = &tls_ca {
+            cmd.arg("--tls-ca").arg(ca);
+        }
+        let out = cmd.output().await.expect("runs");
+        assert!(
+            !out.status.success(),
+            "gRPC with CA {tls_ca:?} to a server of another CA succeeded"
+        );
+    }
+    let mut cmd = load_command(&app, "rest", "puma560");
+    let out = cmd.arg("--tls-ca").arg(&ca).output().await.expect("runs");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--tls-ca"), "{stderr}");
 }
