@@ -3,6 +3,8 @@
 #   scripts/bench.sh                  # every target at 1, 16 and 64 connections, 5 s each
 #   DURATION=10s WARMUP=2s scripts/bench.sh
 #   WRK_ROUNDS=5 scripts/bench.sh     # alternating /healthz–FK wrk pairs behind the REST ratio (3)
+#   TLS_ROUNDS=5 scripts/bench.sh     # alternating plain–TLS rounds behind the TLS ratios (3)
+#   TLS_ONLY=1 scripts/bench.sh       # only the TLS-vs-plain comparison (issue 27)
 # Builds in release, starts kinserve on loopback with a temporary data dir, runs
 # kinserve-load for every target, wrk against REST FK and /healthz when wrk is
 # installed (Debian: apt-get install wrk), and records the server's RSS
@@ -37,7 +39,9 @@ KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data \
   KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 \
   RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$log" &
 pid=$!
-trap 'kill $pid 2>/dev/null; wait $pid 2>/dev/null; rm -rf "$data" "$log"' EXIT
+tls_pid=""
+tls_dir=""
+trap 'kill $pid $tls_pid 2>/dev/null; wait $pid $tls_pid 2>/dev/null; rm -rf "$data" "$log" $tls_dir' EXIT
 for _ in $(seq 100); do
   curl -fs "http://$HTTP/readyz" >/dev/null 2>&1 && break
   sleep 0.1
@@ -48,6 +52,75 @@ idle_rss=$(awk '/VmRSS/ {print $2}' /proc/$pid/status)
 
 load() { "$BIN_DIR/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot "$ROBOT" \
   --duration "$DURATION" --warmup "$WARMUP" "$@"; }
+
+# TLS beside plain (issue 27): a second server on the same settings with a
+# throwaway certificate (openssl, valid one day), and rounds alternating the
+# plain and the TLS server: REST FK with wrk (HTTP/1.1 keep-alive, 64
+# connections) and gRPC unary FK and the gRPC stream with kinserve-load
+# (16 connections; --tls-ca). Prints each round and the median ratio TLS ÷ plain.
+tls_vs_plain() {
+  if ! command -v openssl >/dev/null; then echo "# openssl not installed: TLS comparison skipped"; return; fi
+  tls_dir=$(mktemp -d)
+  local d=$tls_dir thttp=127.0.0.1:${TLS_HTTP_PORT:-18482} tgrpc=127.0.0.1:${TLS_GRPC_PORT:-18453}
+  openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 1 -subj "/CN=kinserve bench CA" \
+    -addext basicConstraints=critical,CA:TRUE -addext keyUsage=keyCertSign -keyout "$d/ca.key" -out "$d/ca.pem" 2>/dev/null
+  openssl req -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -subj "/CN=localhost" \
+    -keyout "$d/server.key" -out "$d/server.csr" 2>/dev/null
+  printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\nextendedKeyUsage=serverAuth\n' >"$d/ext"
+  openssl x509 -req -in "$d/server.csr" -CA "$d/ca.pem" -CAkey "$d/ca.key" -CAcreateserial -days 1 \
+    -extfile "$d/ext" -out "$d/server.crt" 2>/dev/null
+  KINSERVE_HTTP_ADDR=$thttp KINSERVE_GRPC_ADDR=$tgrpc KINSERVE_DATA_DIR=$d/data \
+    KINSERVE_TLS_CERT=$d/server.crt KINSERVE_TLS_KEY=$d/server.key \
+    KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 \
+    RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$d/log" &
+  tls_pid=$!
+  for _ in $(seq 100); do
+    curl -fs --cacert "$d/ca.pem" "https://localhost:${thttp##*:}/readyz" >/dev/null 2>&1 && break
+    sleep 0.1
+  done
+  curl -fs --cacert "$d/ca.pem" "https://localhost:${thttp##*:}/readyz" >/dev/null || { echo "TLS server did not start" >&2; cat "$d/log" >&2; exit 1; }
+  echo
+  echo "# TLS beside plain (same settings, rounds alternate plain and TLS); REST: wrk -c64, gRPC: kinserve-load -c16"
+  local lua=$d/fk.lua rows=""
+  printf '%s\n' 'wrk.method = "POST"' "wrk.body = '{\"joints\": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'" \
+    'wrk.headers["Content-Type"] = "application/json"' >"$lua"
+  wrk_rate() { wrk -t2 -c64 -d"$DURATION" -s "$lua" "$1/v1/robots/$ROBOT/fk" | awk '/Requests\/sec/ {print $2}'; }
+  grpc_rate() { "$BIN_DIR/kinserve-load" --grpc-addr "$1" --robot "$ROBOT" --duration "$DURATION" --warmup "$WARMUP" \
+    --target "$2" --concurrency 16 --json "${@:3}" | python3 -c 'import json,sys; r=json.load(sys.stdin); assert not r["errors"], r["errors"]; print(round(r["poses_per_s"]))'; }
+  for round in $(seq "${TLS_ROUNDS:-3}"); do
+    local rp="-" rt="-"
+    if command -v wrk >/dev/null; then
+      rp=$(wrk_rate "http://$HTTP"); rt=$(wrk_rate "https://localhost:${thttp##*:}")
+    fi
+    local gp gt sp st
+    gp=$(grpc_rate "$GRPC" grpc); gt=$(grpc_rate "$tgrpc" grpc --tls-ca "$d/ca.pem")
+    sp=$(grpc_rate "$GRPC" grpc-stream --pipeline 32); st=$(grpc_rate "$tgrpc" grpc-stream --pipeline 32 --tls-ca "$d/ca.pem")
+    echo "round $round  REST FK req/s plain $rp TLS $rt; gRPC FK req/s plain $gp TLS $gt; gRPC stream poses/s plain $sp TLS $st"
+    rows="$rows $rp:$rt:$gp:$gt:$sp:$st"
+  done
+  python3 - "$rows" <<'PY'
+import sys
+rounds = [r.split(":") for r in sys.argv[1].split()]
+def median(pairs):
+    xs = sorted(float(t) / float(p) for p, t in pairs if p != "-" and t != "-")
+    if not xs:
+        return "n/a (wrk not installed)"
+    mid = xs[len(xs) // 2] if len(xs) % 2 else (xs[len(xs) // 2 - 1] + xs[len(xs) // 2]) / 2
+    return f"{mid:.2f} (rounds {xs[0]:.2f}–{xs[-1]:.2f})"
+for name, i in (("REST FK (wrk, 64 conn)", 0), ("gRPC unary FK (16 conn)", 2), ("gRPC stream FK (16 streams x 32)", 4)):
+    print(f"TLS / plain, {name:<34} {median([(r[i], r[i + 1]) for r in rounds])}")
+PY
+  kill "$tls_pid" 2>/dev/null; wait "$tls_pid" 2>/dev/null || true
+  tls_pid=""
+}
+
+if [ -n "${TLS_ONLY:-}" ]; then
+  echo "# kinserve TLS beside plain"
+  echo "# machine: $(nproc) cores, $(awk '/model name/ {sub(/.*: /, ""); print; exit}' /proc/cpuinfo)"
+  echo "# load generator and server share the machine; robot $ROBOT; $DURATION per measurement after $WARMUP warm-up"
+  tls_vs_plain
+  exit 0
+fi
 
 echo "# kinserve end-to-end figures"
 echo "# machine: $(nproc) cores, $(awk '/model name/ {sub(/.*: /, ""); print; exit}' /proc/cpuinfo)"
@@ -176,3 +249,4 @@ rows = [
 for name, goal, got in rows:
     print(f"{name:<46} goal {goal:<7} measured {got}")
 PY
+tls_vs_plain
