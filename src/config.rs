@@ -447,9 +447,16 @@ pub struct ServeConfig {
     /// LISTEN/NOTIFY and the resync after every reconnect.
     #[arg(long, env = "KINSERVE_DATABASE_RESYNC_INTERVAL", default_value = "30s", value_parser = parse_duration)]
     pub database_resync_interval: Duration,
-    /// Bearer token required for register/replace/delete (REST and gRPC). Unset: open (a warning is logged).
+    /// Bearer token required for register/replace/delete (REST and gRPC).
+    /// Unset: the registry is read-only (writes are 403 / PERMISSION_DENIED)
+    /// unless --allow-unauthenticated-writes is given.
     #[arg(long, env = "KINSERVE_API_TOKEN", hide_env_values = true)]
     pub api_token: Option<String>,
+    /// Without --api-token: let anyone who can reach the server register,
+    /// replace and delete robots (a warning is logged at start-up). Only on
+    /// a network you trust; ignored when a token is set.
+    #[arg(long, env = "KINSERVE_ALLOW_UNAUTHENTICATED_WRITES", default_value_t = false, action = clap::ArgAction::Set, num_args = 0..=1, default_missing_value = "true")]
+    pub allow_unauthenticated_writes: bool,
     /// Allowed CORS origin (repeatable; env: comma separated). Default: any origin.
     #[arg(
         long = "cors-origin",
@@ -605,6 +612,7 @@ impl std::fmt::Debug for ServeConfig {
             database_password_file,
             database_resync_interval,
             api_token,
+            allow_unauthenticated_writes,
             cors_origins,
             log_format,
             traces,
@@ -646,6 +654,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("database_password_file", database_password_file)
             .field("database_resync_interval", database_resync_interval)
             .field("api_token", &api_token.as_ref().map(|_| "<redacted>"))
+            .field("allow_unauthenticated_writes", allow_unauthenticated_writes)
             .field("cors_origins", cors_origins)
             .field("log_format", log_format)
             .field("traces", traces)
@@ -711,13 +720,16 @@ impl ServeConfig {
 
     /// A configuration for tests: [`ServeConfig::flag_defaults`] with both
     /// listeners on 127.0.0.1 port 0, data in `data_dir`, no shutdown grace
-    /// (stopping a test server is instant), no env influence.
+    /// (stopping a test server is instant), no env influence, and registry
+    /// writes open without a token (`--allow-unauthenticated-writes`: most
+    /// tests register robots; the read-only default has tests of its own).
     pub fn for_tests(data_dir: PathBuf) -> ServeConfig {
         let local = SocketAddr::from(([127, 0, 0, 1], 0));
         ServeConfig {
             http_addr: local,
             grpc_addr: local,
             data_dir,
+            allow_unauthenticated_writes: true,
             shutdown_grace: Duration::ZERO,
             ..ServeConfig::flag_defaults()
         }
@@ -940,7 +952,7 @@ mod tests {
     }
 
     #[test]
-    fn test_configuration_is_the_flag_defaults_but_for_listeners_data_and_grace() {
+    fn test_configuration_is_the_flag_defaults_but_for_listeners_data_grace_and_writes() {
         let t = ServeConfig::for_tests("somewhere".into());
         let d = ServeConfig::flag_defaults();
         assert_eq!(t.http_addr, "127.0.0.1:0".parse().unwrap());
@@ -948,12 +960,18 @@ mod tests {
         assert_eq!(t.data_dir, PathBuf::from("somewhere"));
         assert_eq!(t.shutdown_grace, Duration::ZERO);
         assert_eq!(d.shutdown_grace, Duration::from_secs(5));
+        assert!(t.allow_unauthenticated_writes);
+        assert!(
+            !d.allow_unauthenticated_writes,
+            "read-only without a token by default"
+        );
         let same = |c: &ServeConfig| {
             let c = ServeConfig {
                 http_addr: d.http_addr,
                 grpc_addr: d.grpc_addr,
                 data_dir: d.data_dir.clone(),
                 shutdown_grace: d.shutdown_grace,
+                allow_unauthenticated_writes: d.allow_unauthenticated_writes,
                 ..c.clone()
             };
             format!("{c:?}")

@@ -74,25 +74,64 @@ pub struct RobotSummary {
 
 pub use crate::model::Configurations;
 
+/// Who may register, replace and delete robots.
+#[derive(Clone, PartialEq, Eq)]
+pub enum WriteAccess {
+    /// Holders of this bearer token (`--api-token`).
+    Token(String),
+    /// Anyone who can reach the server (`--allow-unauthenticated-writes`).
+    Open,
+    /// Nobody: no token is configured (the default), so the registry is
+    /// read-only; writes are 403 / PERMISSION_DENIED saying how to allow them.
+    Closed,
+}
+
+impl WriteAccess {
+    /// The access a server configuration asks for: its token if one is set
+    /// (an empty token is none), else open or closed.
+    pub fn from_config(token: Option<String>, allow_unauthenticated: bool) -> WriteAccess {
+        match token.filter(|t| !t.is_empty()) {
+            Some(t) => WriteAccess::Token(t),
+            None if allow_unauthenticated => WriteAccess::Open,
+            None => WriteAccess::Closed,
+        }
+    }
+}
+
+impl std::fmt::Debug for WriteAccess {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            WriteAccess::Token(_) => "Token(<redacted>)",
+            WriteAccess::Open => "Open",
+            WriteAccess::Closed => "Closed",
+        })
+    }
+}
+
+/// What a write to a registry without a token is told.
+pub const WRITES_CLOSED: &str = "the registry is read-only: no API token is configured. \
+Start the server with --api-token (KINSERVE_API_TOKEN) and send `Authorization: Bearer <token>`, \
+or with --allow-unauthenticated-writes on a network you trust";
+
 /// The service shared by every front door.
 #[derive(Debug)]
 pub struct Service {
     registry: Registry,
     limits: ServiceLimits,
     ready: AtomicBool,
-    token: Option<String>,
+    writes: WriteAccess,
     pool: ComputePool,
 }
 
 impl Service {
-    /// A service over `registry`; `token`, if set, guards every mutation.
-    pub fn new(registry: Registry, limits: ServiceLimits, token: Option<String>) -> Service {
+    /// A service over `registry`; `writes` says who may change it.
+    pub fn new(registry: Registry, limits: ServiceLimits, writes: WriteAccess) -> Service {
         let permits = limits.compute_permits;
         Service {
             registry,
             limits,
             ready: AtomicBool::new(false),
-            token: token.filter(|t| !t.is_empty()),
+            writes,
             pool: ComputePool::new(permits, share_of(permits, limits.client_share_percent)),
         }
     }
@@ -122,15 +161,26 @@ impl Service {
         &self.registry
     }
 
-    /// Whether mutations need a token.
-    pub fn auth_required(&self) -> bool {
-        self.token.is_some()
+    /// Who may change the registry.
+    pub fn write_access(&self) -> &WriteAccess {
+        &self.writes
     }
 
-    /// Checks a presented bearer token in constant time. Passes when no token is configured.
+    /// Checks a presented bearer token in constant time. Passes anyone when
+    /// writes are open; refuses everyone (403, [`WRITES_CLOSED`]) when no
+    /// token is configured and writes are not opened.
     pub fn authorize(&self, presented: Option<&str>) -> Result<()> {
-        let Some(expected) = &self.token else {
-            return Ok(());
+        let expected = match &self.writes {
+            WriteAccess::Token(t) => t,
+            WriteAccess::Open => return Ok(()),
+            WriteAccess::Closed => {
+                let cert = crate::tls::peer::current_subject();
+                let client_cert = cert.as_deref();
+                tracing::info!(target: "kinserve::audit", client_cert, result = "refused", "registry change refused: no API token configured (read-only registry)");
+                return Err(Error::Forbidden {
+                    detail: WRITES_CLOSED.into(),
+                });
+            }
         };
         match presented {
             Some(p) if bool::from(p.as_bytes().ct_eq(expected.as_bytes())) => Ok(()),
@@ -149,7 +199,7 @@ impl Service {
     }
 
     /// Checks an `Authorization` header (HTTP) or metadata value (gRPC) of the form
-    /// `Bearer <token>` (scheme case-insensitive). Passes when no token is configured.
+    /// `Bearer <token>` (scheme case-insensitive), as [`Service::authorize`].
     pub fn authorize_header(&self, authorization: Option<&str>) -> Result<()> {
         let token = authorization.and_then(|v| {
             let (scheme, token) = v.split_once(' ')?;
@@ -345,10 +395,10 @@ impl Service {
     /// required and so presented (the token itself is never logged), and
     /// the subject of the connection's TLS client certificate, if any.
     fn audit<T>(&self, action: &str, robot: &str, result: &Result<T>) {
-        let who = if self.auth_required() {
-            "bearer token"
-        } else {
-            "anyone (no API token configured)"
+        let who = match self.writes {
+            WriteAccess::Token(_) => "bearer token",
+            WriteAccess::Open => "anyone (--allow-unauthenticated-writes)",
+            WriteAccess::Closed => "nobody (no API token configured)",
         };
         let cert = crate::tls::peer::current_subject();
         let client_cert = cert.as_deref();

@@ -18,7 +18,7 @@ use crate::config::ServeConfig;
 use crate::registry::postgres::sync::{Applier, Syncer};
 use crate::registry::postgres::{PgSettings, PgStore};
 use crate::registry::{FileStore, Registry, Store};
-use crate::service::Service;
+use crate::service::{Service, WriteAccess};
 
 /// A built, not yet running server.
 pub struct App {
@@ -55,7 +55,10 @@ impl App {
         let tls = crate::tls::TlsServer::load(&config.tls).map_err(std::io::Error::other)?;
         let (store, syncer) = open_store(&config).await?;
         let registry = Registry::new(store).with_max_registered(config.max_robots);
-        let token = api_token(config.api_token.as_deref())?;
+        let token = api_token(
+            config.api_token.as_deref(),
+            config.allow_unauthenticated_writes,
+        )?;
         let builtins = registry.load_builtins(config.robots_dir.as_deref(), &limits.model);
         let model_limits = limits.model;
         let (registry, stored) = tokio::task::spawn_blocking(move || {
@@ -73,7 +76,8 @@ impl App {
             store = registry.store_health().kind,
             "robots loaded"
         );
-        let service = Arc::new(Service::new(registry, limits, token));
+        let writes = WriteAccess::from_config(token, config.allow_unauthenticated_writes);
+        let service = Arc::new(Service::new(registry, limits, writes));
         let http = TcpListener::bind(config.http_addr).await?;
         let grpc = TcpListener::bind(config.grpc_addr).await?;
         Ok(App {
@@ -253,18 +257,25 @@ async fn drain(
 
 /// The API token to require: surrounding whitespace (a newline from a secret
 /// file, say) is trimmed with a warning; a token of whitespace only is a
-/// start-up error, since nobody could ever present it. Unset: open, warned.
-fn api_token(raw: Option<&str>) -> std::io::Result<Option<String>> {
+/// start-up error, since nobody could ever present it. Unset: the registry is
+/// read-only, or open to anyone with `allow_unauthenticated` (warned).
+fn api_token(raw: Option<&str>, allow_unauthenticated: bool) -> std::io::Result<Option<String>> {
     let Some(raw) = raw.filter(|t| !t.is_empty()) else {
-        tracing::warn!(
-            "KINSERVE_API_TOKEN is not set: anyone who can reach the server may register and delete robots"
-        );
+        if allow_unauthenticated {
+            tracing::warn!(
+                "KINSERVE_API_TOKEN is not set and --allow-unauthenticated-writes is on: anyone who can reach the server may register and delete robots"
+            );
+        } else {
+            tracing::info!(
+                "KINSERVE_API_TOKEN is not set: the registry is read-only (set a token to register robots)"
+            );
+        }
         return Ok(None);
     };
     let trimmed = raw.trim();
     if trimmed.is_empty() {
         return Err(std::io::Error::other(
-            "KINSERVE_API_TOKEN is only whitespace: set a real token, or unset it for an open server",
+            "KINSERVE_API_TOKEN is only whitespace: set a real token, or unset it for a read-only registry",
         ));
     }
     if trimmed.len() != raw.len() {

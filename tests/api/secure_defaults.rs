@@ -1,6 +1,7 @@
-//! Secure by default: web pages of other origins may compute FK but not
-//! change the registry unless `--cors-origin` names them; one Authorization
-//! header only; tokens with stray whitespace; a bounded registry.
+//! Secure by default: without a token the registry is read-only unless
+//! `--allow-unauthenticated-writes`; web pages of other origins may compute
+//! FK but not change the registry unless `--cors-origin` names them; one
+//! Authorization header only; tokens with stray whitespace; a bounded registry.
 
 use kinserve::api::grpc::pb;
 use serde_json::json;
@@ -23,6 +24,75 @@ async fn post_from(
         .send()
         .await
         .unwrap()
+}
+
+/// The real default (no token, writes not opened): every registry write is
+/// 403 / PERMISSION_DENIED with the fix, whatever token is presented, on REST
+/// and gRPC; reads and FK are served; nothing is written.
+#[tokio::test]
+async fn without_a_token_the_registry_is_read_only_by_default_on_every_door() {
+    let defaults = kinserve::config::ServeConfig::flag_defaults();
+    assert!(defaults.api_token.is_none() && !defaults.allow_unauthenticated_writes);
+    let app = spawn_app_with(|c| {
+        c.api_token = defaults.api_token.clone();
+        c.allow_unauthenticated_writes = defaults.allow_unauthenticated_writes;
+    })
+    .await;
+    let url = |path: &str| format!("{}{path}", app.http);
+    let writes = [
+        app.client.post(url("/v1/robots")).json(&planar_model("w1")),
+        app.client
+            .put(url("/v1/robots/w2"))
+            .bearer_auth("any-token")
+            .json(&planar_model("w2")),
+        app.client.delete(url("/v1/robots/planar_2dof")),
+    ];
+    for write in writes {
+        let p = problem(write.send().await.unwrap(), 403).await;
+        assert_eq!(p["type"], "urn:kinserve:problem:forbidden");
+        let detail = p["detail"].as_str().unwrap();
+        for fix in [
+            "--api-token",
+            "KINSERVE_API_TOKEN",
+            "--allow-unauthenticated-writes",
+        ] {
+            assert!(detail.contains(fix), "{fix} in {p}");
+        }
+    }
+    for name in ["w1", "w2"] {
+        assert_eq!(app.get(&format!("/v1/robots/{name}")).await.status(), 404);
+    }
+    assert_eq!(app.get("/v1/robots/planar_2dof").await.status(), 200);
+    let fk = app
+        .post("/v1/robots/planar_2dof/fk", &json!({"joints": [0, 0]}))
+        .await;
+    assert_eq!(fk.status(), 200);
+    let mut client = app.grpc_client().await;
+    let e = client
+        .register_robot(pb::RegisterRobotRequest::default())
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
+    assert!(e.message().contains("--api-token"), "{e:?}");
+    let e = client
+        .import_urdf(pb::ImportUrdfRequest::default())
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
+    let e = client
+        .delete_robot(pb::DeleteRobotRequest {
+            name: "planar_2dof".into(),
+            ..Default::default()
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
+    // Opened on purpose, the same write goes through.
+    let open = spawn_app_with(|c| c.allow_unauthenticated_writes = true).await;
+    assert_eq!(
+        open.post("/v1/robots", &planar_model("w1")).await.status(),
+        201
+    );
 }
 
 #[tokio::test]

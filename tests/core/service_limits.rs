@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use kinserve::model::IkSpec;
 use kinserve::registry::{MemoryStore, Registry};
-use kinserve::service::{Service, ServiceLimits};
+use kinserve::service::{Service, ServiceLimits, WriteAccess};
 
 fn service(ik_time_limit: Duration, ik_batch_time_limit: Duration) -> Service {
     let limits = ServiceLimits {
@@ -15,7 +15,7 @@ fn service(ik_time_limit: Duration, ik_batch_time_limit: Duration) -> Service {
     };
     let registry = Registry::new(Box::new(MemoryStore));
     registry.load_builtins(None, &limits.model);
-    Service::new(registry, limits, None)
+    Service::new(registry, limits, WriteAccess::Open)
 }
 
 fn spec(v: serde_json::Value) -> IkSpec {

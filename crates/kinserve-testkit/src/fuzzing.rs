@@ -26,7 +26,7 @@ use kinserve::api::pose::Pose;
 use kinserve::api::rest::{FkBatchRequest, FkRequest, WsRequest};
 use kinserve::error::Error;
 use kinserve::registry::{MemoryStore, Registry};
-use kinserve::service::{Service, ServiceLimits};
+use kinserve::service::{Service, ServiceLimits, WriteAccess};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
     AngleUnit, FkBatchSpec, FkOptions, FkSpec, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError,
@@ -272,7 +272,7 @@ fn service() -> &'static Service {
         Service::new(
             Registry::new(Box::new(MemoryStore)),
             ServiceLimits::default(),
-            None,
+            WriteAccess::Open,
         )
     })
 }

@@ -104,7 +104,7 @@ pub fn describe(code: &str) -> &'static str {
         }
         "401" => "Missing or wrong bearer token (only when the server has an API token).",
         "403" => {
-            "Forbidden: a registry write (or, with --cors-origin set, a WebSocket) from a web page of an origin not allowed by --cors-origin."
+            "Forbidden: a registry write to a server without an API token (its registry is read-only unless started with --allow-unauthenticated-writes), or a registry write (or, with --cors-origin set, a WebSocket) from a web page of an origin not allowed by --cors-origin."
         }
         "404" => "No robot of that name (the nearest names are suggested) or no such route.",
         "409" => "Conflict: the name is taken, or the robot is built in and read-only.",

@@ -150,6 +150,9 @@ pub(crate) async fn start_server_probed(
             .env("KINSERVE_DATA_DIR", data_dir)
             .env("KINSERVE_ROBOTS_DIR", robots_dir())
             .env("RUST_LOG", "warn")
+            // As ServeConfig::for_tests: tests register robots without a
+            // token unless they set one (`env` may override this).
+            .env("KINSERVE_ALLOW_UNAUTHENTICATED_WRITES", "true")
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());

@@ -331,12 +331,12 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
     use axum::routing::get;
     use kinserve::api::rest::{AppInner, AppState, router_with};
     use kinserve::registry::{MemoryStore, Registry};
-    use kinserve::service::{Service, ServiceLimits};
+    use kinserve::service::{Service, ServiceLimits, WriteAccess};
 
     let limits = ServiceLimits::default();
     let registry = Registry::new(Box::new(MemoryStore));
     registry.load_builtins(None, &limits.model);
-    let service = Arc::new(Service::new(registry, limits, None));
+    let service = Arc::new(Service::new(registry, limits, WriteAccess::Open));
     service.set_ready(true);
     let config = kinserve::config::ServeConfig::for_tests(std::env::temp_dir());
     let state = AppState::new(AppInner {
