@@ -86,18 +86,6 @@ pub enum WriteAccess {
     Closed,
 }
 
-impl WriteAccess {
-    /// The access a server configuration asks for: its token if one is set
-    /// (an empty token is none), else open or closed.
-    pub fn from_config(token: Option<String>, allow_unauthenticated: bool) -> WriteAccess {
-        match token.filter(|t| !t.is_empty()) {
-            Some(t) => WriteAccess::Token(t),
-            None if allow_unauthenticated => WriteAccess::Open,
-            None => WriteAccess::Closed,
-        }
-    }
-}
-
 impl std::fmt::Debug for WriteAccess {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
@@ -159,11 +147,6 @@ impl Service {
     /// The registry.
     pub fn registry(&self) -> &Registry {
         &self.registry
-    }
-
-    /// Who may change the registry.
-    pub fn write_access(&self) -> &WriteAccess {
-        &self.writes
     }
 
     /// Checks a presented bearer token in constant time. Passes anyone when

@@ -55,7 +55,7 @@ impl App {
         let tls = crate::tls::TlsServer::load(&config.tls).map_err(std::io::Error::other)?;
         let (store, syncer) = open_store(&config).await?;
         let registry = Registry::new(store).with_max_registered(config.max_robots);
-        let token = api_token(
+        let writes = write_access(
             config.api_token.as_deref(),
             config.allow_unauthenticated_writes,
         )?;
@@ -76,7 +76,6 @@ impl App {
             store = registry.store_health().kind,
             "robots loaded"
         );
-        let writes = WriteAccess::from_config(token, config.allow_unauthenticated_writes);
         let service = Arc::new(Service::new(registry, limits, writes));
         let http = TcpListener::bind(config.http_addr).await?;
         let grpc = TcpListener::bind(config.grpc_addr).await?;
@@ -255,22 +254,23 @@ async fn drain(
     stop.cancel();
 }
 
-/// The API token to require: surrounding whitespace (a newline from a secret
-/// file, say) is trimmed with a warning; a token of whitespace only is a
-/// start-up error, since nobody could ever present it. Unset: the registry is
-/// read-only, or open to anyone with `allow_unauthenticated` (warned).
-fn api_token(raw: Option<&str>, allow_unauthenticated: bool) -> std::io::Result<Option<String>> {
+/// Who may change the registry: holders of the API token, whose surrounding
+/// whitespace (a newline from a secret file, say) is trimmed with a warning;
+/// a token of whitespace only is a start-up error, since nobody could ever
+/// present it. No token: nobody (a read-only registry), or anyone with
+/// `allow_unauthenticated` (warned).
+fn write_access(raw: Option<&str>, allow_unauthenticated: bool) -> std::io::Result<WriteAccess> {
     let Some(raw) = raw.filter(|t| !t.is_empty()) else {
         if allow_unauthenticated {
             tracing::warn!(
                 "KINSERVE_API_TOKEN is not set and --allow-unauthenticated-writes is on: anyone who can reach the server may register and delete robots"
             );
-        } else {
-            tracing::info!(
-                "KINSERVE_API_TOKEN is not set: the registry is read-only (set a token to register robots)"
-            );
+            return Ok(WriteAccess::Open);
         }
-        return Ok(None);
+        tracing::info!(
+            "KINSERVE_API_TOKEN is not set: the registry is read-only (set a token to register robots)"
+        );
+        return Ok(WriteAccess::Closed);
     };
     let trimmed = raw.trim();
     if trimmed.is_empty() {
@@ -283,7 +283,7 @@ fn api_token(raw: Option<&str>, allow_unauthenticated: bool) -> std::io::Result<
             "KINSERVE_API_TOKEN has surrounding whitespace (e.g. a trailing newline): it was trimmed"
         );
     }
-    Ok(Some(trimmed.to_string()))
+    Ok(WriteAccess::Token(trimmed.to_string()))
 }
 
 /// The store `config` asks for: PostgreSQL (with its sync task) when
