@@ -245,11 +245,7 @@ async fn unary_worker(
 ) -> Result<(), String> {
     let args = &plan.args;
     let http = rest_client();
-    let needs_grpc = matches!(
-        args.target,
-        Target::Grpc | Target::GrpcBatch | Target::GrpcHealth
-    );
-    let mut grpc = if needs_grpc && args.target != Target::GrpcHealth {
+    let mut grpc = if matches!(args.target, Target::Grpc | Target::GrpcBatch) {
         Some(grpc_client(plan).await?)
     } else {
         None
