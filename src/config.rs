@@ -273,7 +273,8 @@ pub struct IkArgs {
     /// Iterations per attempt (default 100).
     #[arg(long)]
     pub max_iterations: Option<u32>,
-    /// Restarts after a stalled attempt (default 100).
+    /// Restarts after a stalled attempt (all run when given; default: up to
+    /// 1000, past 100 only while the best attempt is within 1e-3 of the target).
     #[arg(long)]
     pub restarts: Option<u32>,
     /// Which solver runs: auto (the closed form where the arm has one), analytic, numeric.

@@ -16,7 +16,8 @@ use std::time::{Duration, Instant};
 use kinserve_kinematics::Transform;
 use kinserve_kinematics::analytic_ik::AnalyticIk;
 use kinserve_kinematics::ik::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_RESTARTS, DEFAULT_TOLERANCE, IkOptions, IkSolution, IkSolver,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_RESTARTS, DEFAULT_TOLERANCE, FAR_RESTARTS, IkOptions,
+    IkSolution, IkSolver,
 };
 use serde::{Deserialize, Serialize};
 
@@ -89,7 +90,10 @@ pub struct IkSpec {
     /// Iterations per attempt (default 100; 1 to 10,000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_iterations: Option<u32>,
-    /// Restarts from new configurations after a stalled attempt (default 100; 0 to 1,000).
+    /// Restarts from new configurations after a stalled attempt (0 to 1,000;
+    /// all run when given). Absent: up to 1,000, past 100 only while the best
+    /// attempt is within 1e-3 (or 1,000 × the tolerance) of the target, so a
+    /// target out of reach costs 100 restarts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restarts: Option<u32>,
     /// Which solver runs (default `auto`: the arm's closed form where it has
@@ -404,6 +408,9 @@ impl Robot {
             tolerance,
             max_iterations,
             restarts,
+            // Restarts asked for all run; the default gives up early on a
+            // target no attempt came close to.
+            far_restarts: o.restarts.map_or(Some(FAR_RESTARTS), |_| None),
             posture,
             axis_tolerances,
             ..IkOptions::default()
