@@ -6,7 +6,9 @@ Robotics Toolbox DH arms (registered as kinserve robot files from their DH
 tables), every answer checked by an independent FK (numpy, the textbook DH
 product from the rows) to 1e-5 and within the limits.
 
-    python3 scripts/bench-ik-peers.py [--n 1000] [--rounds 5] [--arms a,b] [--markdown]
+    python3 scripts/bench-ik-peers.py [--n 1000] [--rounds 5] [--arms a,b] [--seed S] [--json F]
+
+(`--seed`: another set of random targets; default, the driver's own seed.)
 
 Needs a release build of the kinserve driver (built on first use):
     cargo build --release -p kinserve-kinematics --example ik_peers
@@ -45,6 +47,7 @@ SHIPPED = ["puma560", "abb_irb140", "kuka_kr5", "stanford", "ur3e", "ur5", "ur5e
            "cylindrical_wrist_6dof", "spherical_wrist"]
 RTB_ARMS = ["IRB140", "KR5", "Jaco", "LWR4", "Sawyer", "Baxter", "Panda", "UR5", "Puma560"]
 CHECK_TOL = 1e-5
+DRIVER_ARGS = []  # --seed S, when given
 
 
 def rtb_model_file(name, out_dir):
@@ -128,7 +131,7 @@ def mid(info):
 
 def run_driver(path, n, lo, hi):
     out = subprocess.run([DRIVER, "--robot", path, "--n", str(n), "--from", str(lo),
-                          "--to", str(hi)], check=True, capture_output=True, text=True)
+                          "--to", str(hi), *DRIVER_ARGS], check=True, capture_output=True, text=True)
     return json.loads(out.stdout)
 
 
@@ -287,7 +290,10 @@ def main():
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--arms", default="")
     ap.add_argument("--json", default="")
+    ap.add_argument("--seed", type=int, default=None)
     args = ap.parse_args()
+    if args.seed is not None:
+        DRIVER_ARGS.extend(["--seed", str(args.seed)])
     if not os.path.exists(DRIVER):
         subprocess.run(["cargo", "build", "--release", "-p", "kinserve-kinematics",
                         "--example", "ik_peers"], check=True, cwd=ROOT)
