@@ -25,8 +25,8 @@
 //! solver restarts from a pseudo-random in-limit configuration drawn from a
 //! fixed seed, so every answer is deterministic (unless the time cap cuts a
 //! solve short); by default, past [`FAR_RESTARTS`] restarts it goes on only
-//! while its best attempt is close to the target. Every answer, converged or not, is
-//! within the joint limits.
+//! while its best attempt is close to the target. Every answer, converged or
+//! not, is within the joint limits.
 //!
 //! Two optional objectives ([`IkOptions`]): per-axis tolerances (position
 //! along and rotation about the target frame's x, y, z axes, `f64::INFINITY`
