@@ -16,7 +16,7 @@ use kinserve_kinematics::ik::{IkOptions, IkSolver};
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use kinserve_model::Robot;
 
-use crate::jacobian::{all_robots, random_config};
+use crate::jacobian::{all_robots, random_config, robot};
 use crate::kinematics::Rng;
 
 /// FK agreement every answer must meet (length unit; rotation entries).
@@ -458,10 +458,6 @@ fn arms_not_classified_say_why() {
 }
 
 // ------------------------------------------------------------ units and reach
-
-fn robot(name: &str) -> Robot {
-    all_robots().into_iter().find(|r| r.name() == name).unwrap()
-}
 
 #[test]
 fn millimetre_chains_give_the_same_angles() {

@@ -9,7 +9,7 @@ use kinserve_kinematics::ik::{
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::Robot;
 
-use crate::jacobian::{all_robots, random_config};
+use crate::jacobian::{all_robots, random_config, robot};
 use crate::kinematics::Rng;
 
 /// The shipped arms with 6 or 7 joints.
@@ -197,10 +197,7 @@ fn an_unreachable_target_is_not_converged_and_reports_its_best_attempt() {
 /// still stops after [`FAR_RESTARTS`], unless the restarts were asked for.
 #[test]
 fn near_singular_targets_use_the_further_restarts_and_far_ones_stop_after_100() {
-    let panda = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "panda")
-        .unwrap();
+    let panda = robot("panda");
     let solver = IkSolver::new(panda.chain(), &limits(&panda));
     let opts = IkOptions {
         tolerance: 1e-6,
@@ -278,10 +275,7 @@ fn mid(robot: &Robot) -> Vec<f64> {
 fn an_orientation_out_of_reach_with_a_reachable_position_fails_the_full_solve_only() {
     // A 3-joint arm cannot also set the orientation: the full solve fails, the
     // position-only solve of the same target succeeds.
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "spatial_3r")
-        .unwrap();
+    let robot = robot("spatial_3r");
     let solver = IkSolver::new(robot.chain(), &limits(&robot));
     let q = [0.4, -0.3, 0.9];
     let reached = robot.chain().forward(&q, 1.0);
@@ -339,10 +333,7 @@ fn position_only_round_trips_on_the_small_arms() {
 
 #[test]
 fn answers_are_deterministic_restarts_included() {
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "panda")
-        .unwrap();
+    let robot = robot("panda");
     let solver = IkSolver::new(robot.chain(), &limits(&robot));
     // Out of reach: every restart is used, and the best of them answered.
     let target = Transform::translation(3.0, 1.0, 0.5);
@@ -359,10 +350,7 @@ fn answers_are_deterministic_restarts_included() {
 
 #[test]
 fn a_deadline_in_the_past_answers_at_once_with_the_start() {
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "ur5e")
-        .unwrap();
+    let robot = robot("ur5e");
     let solver = IkSolver::new(robot.chain(), &limits(&robot));
     let target = robot
         .chain()
@@ -379,21 +367,15 @@ fn a_deadline_in_the_past_answers_at_once_with_the_start() {
 
 #[test]
 fn a_seed_outside_the_limits_is_clamped_and_unlimited_joints_answer_near_the_seed() {
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "puma560")
-        .unwrap();
-    let solver = IkSolver::new(robot.chain(), &limits(&robot));
+    let puma = robot("puma560");
+    let solver = IkSolver::new(puma.chain(), &limits(&puma));
     let q = [0.3, -0.5, 0.2, 0.4, 0.6, -0.2];
-    let target = robot.chain().forward(&q, 1.0);
+    let target = puma.chain().forward(&q, 1.0);
     let s = solver.solve(&target, Some(&[50.0; 6]), &IkOptions::default());
     assert!(s.converged);
-    assert_within_limits(&robot, &s.q, "clamped seed");
+    assert_within_limits(&puma, &s.q, "clamped seed");
     // inline_6dof has no limits: answers are within π of the seed.
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "inline_6dof")
-        .unwrap();
+    let robot = robot("inline_6dof");
     let solver = IkSolver::new(robot.chain(), &limits(&robot));
     let seed = [10.0, 10.0, 10.0, 10.0, 10.0, 10.0];
     let target = robot.chain().forward(&q, 1.0);

@@ -10,12 +10,8 @@ use kinserve_kinematics::Transform;
 use kinserve_kinematics::ik::{IkOptions, IkSolver, Posture, rotation_error};
 use kinserve_model::Robot;
 
-use crate::jacobian::{all_robots, random_config};
+use crate::jacobian::{random_config, robot};
 use crate::kinematics::Rng;
-
-fn robot(name: &str) -> Robot {
-    all_robots().into_iter().find(|r| r.name() == name).unwrap()
-}
 
 fn limits(robot: &Robot) -> Vec<Option<(f64, f64)>> {
     robot.joints().iter().map(|j| j.limits).collect()

@@ -26,6 +26,14 @@ pub fn all_robots() -> Vec<Robot> {
     robots
 }
 
+/// The shipped robot named `name`.
+pub fn robot(name: &str) -> Robot {
+    all_robots()
+        .into_iter()
+        .find(|r| r.name() == name)
+        .unwrap_or_else(|| panic!("no shipped robot named {name}"))
+}
+
 /// A configuration within the robot's limits (rad / length unit); unlimited
 /// revolute joints in [-π, π], unlimited prismatic ones in [-0.5, 0.5]·reach.
 pub fn random_config(robot: &Robot, rng: &mut Rng) -> Vec<f64> {
@@ -217,10 +225,7 @@ fn random_chains_match_central_differences_in_both_conventions() {
 
 #[test]
 fn degree_scaled_joint_values_give_columns_per_radian() {
-    let robot = all_robots()
-        .into_iter()
-        .find(|r| r.name() == "puma560")
-        .unwrap();
+    let robot = robot("puma560");
     let chain = robot.chain();
     let q_rad = [0.3, -0.4, 0.5, 0.2, -0.7, 1.1];
     let q_deg = q_rad.map(f64::to_degrees);
