@@ -33,20 +33,34 @@ formats="full matrix position"
 # kinserve-load is one client with many connections: it gets every budget
 # (share 100 %), and batches queue on the batch slots as a throughput test
 # wants instead of being refused by the compute pool (64 permits).
+# The settings of every server this script starts (the TLS one too).
+SERVER_ENV=(KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 RUST_LOG=warn)
+# wait_ready LOG CURL_ARGS... : until the readiness URL (last argument) answers, or exit.
+wait_ready() {
+  local log=$1; shift
+  for _ in $(seq 100); do
+    curl -fs "$@" >/dev/null 2>&1 && return
+    sleep 0.1
+  done
+  curl -fs "$@" >/dev/null || { echo "server did not start" >&2; cat "$log" >&2; exit 1; }
+}
+# fk_lua FILE: the wrk script of one REST FK request.
+fk_lua() {
+  cat >"$1" <<'LUA'
+wrk.method = "POST"
+wrk.body   = '{"joints": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'
+wrk.headers["Content-Type"] = "application/json"
+LUA
+}
 data=$(mktemp -d)
 log=$(mktemp)
-KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data \
-  KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 \
-  RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$log" &
+env KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data "${SERVER_ENV[@]}" \
+  "$BIN_DIR/kinserve" serve 2>"$log" &
 pid=$!
 tls_pid=""
 tls_dir=""
 trap 'kill $pid $tls_pid 2>/dev/null; wait $pid $tls_pid 2>/dev/null; rm -rf "$data" "$log" $tls_dir' EXIT
-for _ in $(seq 100); do
-  curl -fs "http://$HTTP/readyz" >/dev/null 2>&1 && break
-  sleep 0.1
-done
-curl -fs "http://$HTTP/readyz" >/dev/null || { echo "server did not start" >&2; cat "$log" >&2; exit 1; }
+wait_ready "$log" "http://$HTTP/readyz"
 sleep 1
 idle_rss=$(awk '/VmRSS/ {print $2}' /proc/$pid/status)
 
@@ -69,21 +83,15 @@ tls_vs_plain() {
   printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\nextendedKeyUsage=serverAuth\n' >"$d/ext"
   openssl x509 -req -in "$d/server.csr" -CA "$d/ca.pem" -CAkey "$d/ca.key" -CAcreateserial -days 1 \
     -extfile "$d/ext" -out "$d/server.crt" 2>/dev/null
-  KINSERVE_HTTP_ADDR=$thttp KINSERVE_GRPC_ADDR=$tgrpc KINSERVE_DATA_DIR=$d/data \
-    KINSERVE_TLS_CERT=$d/server.crt KINSERVE_TLS_KEY=$d/server.key \
-    KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 \
-    RUST_LOG=warn "$BIN_DIR/kinserve" serve 2>"$d/log" &
+  env KINSERVE_HTTP_ADDR=$thttp KINSERVE_GRPC_ADDR=$tgrpc KINSERVE_DATA_DIR=$d/data \
+    KINSERVE_TLS_CERT=$d/server.crt KINSERVE_TLS_KEY=$d/server.key "${SERVER_ENV[@]}" \
+    "$BIN_DIR/kinserve" serve 2>"$d/log" &
   tls_pid=$!
-  for _ in $(seq 100); do
-    curl -fs --cacert "$d/ca.pem" "https://localhost:${thttp##*:}/readyz" >/dev/null 2>&1 && break
-    sleep 0.1
-  done
-  curl -fs --cacert "$d/ca.pem" "https://localhost:${thttp##*:}/readyz" >/dev/null || { echo "TLS server did not start" >&2; cat "$d/log" >&2; exit 1; }
+  wait_ready "$d/log" --cacert "$d/ca.pem" "https://localhost:${thttp##*:}/readyz"
   echo
   echo "# TLS beside plain (same settings, rounds alternate plain and TLS); REST: wrk -c64, gRPC: kinserve-load -c16"
   local lua=$d/fk.lua rows=""
-  printf '%s\n' 'wrk.method = "POST"' "wrk.body = '{\"joints\": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'" \
-    'wrk.headers["Content-Type"] = "application/json"' >"$lua"
+  fk_lua "$lua"
   wrk_rate() { wrk -t2 -c64 -d"$DURATION" -s "$lua" "$1/v1/robots/$ROBOT/fk" | awk '/Requests\/sec/ {print $2}'; }
   grpc_rate() { "$BIN_DIR/kinserve-load" --grpc-addr "$1" --robot "$ROBOT" --duration "$DURATION" --warmup "$WARMUP" \
     --target "$2" --concurrency 16 --json "${@:3}" | python3 -c 'import json,sys; r=json.load(sys.stdin); assert not r["errors"], r["errors"]; print(round(r["poses_per_s"]))'; }
@@ -172,11 +180,7 @@ if command -v wrk >/dev/null; then
   echo
   echo "# wrk (HTTP/1.1 keep-alive), 2 threads"
   lua=$(mktemp --suffix=.lua)
-  cat >"$lua" <<'LUA'
-wrk.method = "POST"
-wrk.body   = '{"joints": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'
-wrk.headers["Content-Type"] = "application/json"
-LUA
+  fk_lua "$lua"
   for c in 16 64; do
     h=$(wrk -t2 -c"$c" -d"$DURATION" --latency "http://$HTTP/healthz")
     f=$(wrk -t2 -c"$c" -d"$DURATION" --latency -s "$lua" "http://$HTTP/v1/robots/$ROBOT/fk")
