@@ -10,13 +10,13 @@ use std::time::Duration;
 use crate::api::ik::{IkItem, IkOutput, IkPathOutput};
 use crate::api::jacobian::{JacobianItem, JacobianOutput};
 use crate::api::pose::{FkOutput, Pose};
-use crate::api::rest::LinkTransformsOutput;
+use crate::api::rest::ops::RestOp;
 use crate::config::{
-    Cli, ClosedFormArgs, ClosedFormFormat, Command, ConventionArg, FkArgs, FrameArg, IkArgs,
-    IkPathArgs, ImportUrdfArgs, JacobianArgs, LinkTransformsArgs, ModelArgs, ServeConfig,
-    SolverArg,
+    Cli, ClosedFormArgs, ClosedFormFormat, Command, ConfigArgs, ConventionArg, FkArgs, FrameArg,
+    IkArgs, IkPathArgs, ImportUrdfArgs, JacobianArgs, ModelArgs, OpCommand, ServeConfig, SolverArg,
 };
 use crate::error::Error;
+use crate::model::operations;
 use crate::model::{
     AngleUnit, ClosedForm, ConventionSpec, FkOptions, IkPathSpec, IkSolutionsMode, IkSolverChoice,
     IkSpec, IkTargetSpec, ModelLimits, QuaternionSpec, ReferenceFrame, Robot, UrdfImport,
@@ -56,7 +56,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Some(Command::Validate { files }) => validate(&files),
         Some(Command::Fk(args)) => fk(&args),
         Some(Command::Jacobian(args)) => jacobian(&args),
-        Some(Command::LinkTransforms(args)) => link_transforms(&args),
+        Some(Command::Op(op)) => config_op(&op),
         Some(Command::Ik(args)) => ik(&args),
         Some(Command::IkPath(args)) => ik_path(&args),
         Some(Command::ClosedForm(args)) => closed_form(&args),
@@ -292,7 +292,21 @@ fn jacobian(args: &JacobianArgs) -> ExitCode {
     }
 }
 
-fn link_transforms(args: &LinkTransformsArgs) -> ExitCode {
+/// Runs the subcommand of an operation on one configuration.
+macro_rules! cli_config_ops {
+    ($( $(#[$doc:meta])* $name:ident: $op:ident => [$($answer:tt)+]; )*) => {
+        fn config_op(op: &OpCommand) -> ExitCode {
+            match op {
+                $( OpCommand::$op(args) => config_answer::<operations::$op>(args), )*
+            }
+        }
+    };
+}
+
+crate::model::config_ops!(cli_config_ops);
+
+/// Prints `Op`'s REST answer at the flags' configuration.
+fn config_answer<Op: RestOp>(args: &ConfigArgs) -> ExitCode {
     let robot = match load_model(&args.which) {
         Ok(r) => r,
         Err(code) => return code,
@@ -300,14 +314,7 @@ fn link_transforms(args: &LinkTransformsArgs) -> ExitCode {
     let unit = angle_unit(args.deg);
     let opts = FkOptions::new(Some(unit), Some(!args.no_limits));
     match robot.check_joints(&args.joints, &opts) {
-        Ok(q) => {
-            let out = LinkTransformsOutput {
-                robot: robot.name().to_string(),
-                length_unit: robot.length_unit(),
-                link_transforms: q.link_transforms().iter().map(Into::into).collect(),
-            };
-            print_json(&out, ExitCode::SUCCESS)
-        }
+        Ok(q) => print_json(&Op::output(&robot, Op::compute(&q)), ExitCode::SUCCESS),
         Err(e) => {
             print_error("--joints", &e.into());
             ExitCode::FAILURE

@@ -44,9 +44,10 @@ pub enum Command {
     /// Compute the geometric Jacobian once and print it as JSON (the REST
     /// API's `jacobian` response).
     Jacobian(JacobianArgs),
-    /// Print each DH row's link matrix ⁱ⁻¹Aᵢ and its inverse at one
-    /// configuration as JSON (the REST API's `link-transforms` response).
-    LinkTransforms(LinkTransformsArgs),
+    /// The operations on one configuration, one subcommand each (the table
+    /// `kinserve_model::config_ops!`), printing the REST answer as JSON.
+    #[command(flatten)]
+    Op(OpCommand),
     /// Solve inverse kinematics once and print the answer as JSON (the REST
     /// API's `ik` response); exits 1 (printing the best attempt) if the
     /// target is not reached within the tolerance.
@@ -126,9 +127,28 @@ pub struct FkArgs {
     pub no_limits: bool,
 }
 
-/// Arguments of `kinserve link-transforms`.
+/// Writes [`OpCommand`]: one subcommand per operation on one configuration
+/// (the table [`crate::model::config_ops!`]), named after it (dashes).
+macro_rules! op_commands {
+    ($( $(#[$doc:meta])* $name:ident: $op:ident => [$($answer:tt)+]; )*) => {
+        /// The subcommands of the operations on one configuration.
+        #[derive(Debug, Subcommand)]
+        pub enum OpCommand {
+            $(
+                $(#[$doc])*
+                ///
+                /// Prints the REST answer as JSON.
+                $op(ConfigArgs),
+            )*
+        }
+    };
+}
+
+crate::model::config_ops!(op_commands);
+
+/// Arguments of the subcommand of an operation on one configuration.
 #[derive(Debug, Args)]
-pub struct LinkTransformsArgs {
+pub struct ConfigArgs {
     /// The robot.
     #[command(flatten)]
     pub which: ModelArgs,

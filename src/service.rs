@@ -10,10 +10,11 @@ use subtle::ConstantTimeEq;
 use crate::compute::{ClientId, ComputePool, cancelled, share_of, stopped};
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
+use crate::model::operations::{ConfigAnswers, ConfigOp, ConfigSpec};
 use crate::model::{
     FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkPathAnswer, IkPathSpec, IkSpec, JacobianAnswer,
-    JacobianBatchSpec, JacobianSpec, LengthUnit, LinkTransform, LinkTransformsSpec, ModelLimits,
-    PoseFormat, Robot, RobotSpec, StreamOp,
+    JacobianBatchSpec, JacobianSpec, LengthUnit, ModelLimits, PoseFormat, Robot, RobotSpec,
+    StreamOp,
 };
 use crate::registry::{ClosedFormResult, Condition, Entry, Origin, PutMode, Registry};
 
@@ -412,16 +413,12 @@ impl Service {
         Ok(FkAnswer { pose, frames })
     }
 
-    /// Checked link transforms of one configuration: each DH row's
-    /// `ⁱ⁻¹Aᵢ` and its inverse (see [`crate::model::JointVector::link_transforms`]).
-    pub fn link_transforms(
-        &self,
-        robot: &Robot,
-        spec: &LinkTransformsSpec,
-    ) -> Result<Vec<LinkTransform>> {
+    /// Checked answer of an operation on one configuration
+    /// ([`crate::model::operations`]): validated once, computed on this task.
+    pub fn config_op<Op: ConfigOp>(&self, robot: &Robot, spec: &ConfigSpec) -> Result<Op::Answer> {
         let q = crate::trace_span!("validate")
             .in_scope(|| robot.check_joints(&spec.joints, &spec.options))?;
-        Ok(crate::trace_span!("compute").in_scope(|| q.link_transforms()))
+        Ok(crate::trace_span!("compute").in_scope(|| Op::compute(&q)))
     }
 
     /// Checks a batch size against the limit before anything is decoded further.
@@ -718,7 +715,7 @@ pub struct FkAnswer {
 #[derive(Clone, Debug, PartialEq)]
 pub enum StreamAnswer {
     /// FK: the tool pose (the Jacobian's when it was asked for; the same pose),
-    /// frames, the Jacobian and the link transforms as asked for.
+    /// frames, the Jacobian and the operations on one configuration as asked for.
     Fk {
         /// Tool pose and frames.
         fk: FkAnswer,
@@ -726,8 +723,8 @@ pub enum StreamAnswer {
         pose_format: PoseFormat,
         /// The Jacobian, when asked for.
         jacobian: Option<JacobianAnswer>,
-        /// The link transforms, when asked for.
-        link_transforms: Option<Vec<LinkTransform>>,
+        /// The operations on one configuration, those asked for.
+        ops: ConfigAnswers,
     },
     /// IK: the answer (converged; not converged is an error).
     Ik(IkAnswer),
@@ -738,8 +735,9 @@ pub enum StreamAnswer {
 /// One stream message, the same for the WebSocket and the gRPC stream.
 impl Service {
     /// Answers one stream message for `entry`: FK (with the Jacobian and the
-    /// link transforms when asked for, validated once) on this task, IK on
-    /// the compute pool under one of `client`'s permits. Counts the poses under `protocol`.
+    /// operations on one configuration when asked for, validated once) on
+    /// this task, IK on the compute pool under one of `client`'s permits.
+    /// Counts the poses under `protocol`.
     pub async fn stream_step(
         self: &Arc<Self>,
         entry: Arc<Entry>,
@@ -754,23 +752,19 @@ impl Service {
             StreamOp::IkPath(spec) => Ok(StreamAnswer::IkPath(
                 self.ik_path_on_pool(client, entry, *spec).await?,
             )),
-            StreamOp::Fk {
-                fk,
-                jacobian,
-                link_transforms,
-            } => {
+            StreamOp::Fk { fk, jacobian, ops } => {
                 let q = entry.robot.check_joints(&fk.joints, &fk.options)?;
                 let (pose, frames) = q.fk_with_frames(fk.frames);
                 let jacobian = jacobian.map(|frame| q.jacobian(frame));
                 // With the Jacobian, the pose is the Jacobian's (as `…/jacobian` answers it).
                 let pose = jacobian.as_ref().map_or(pose, |j| j.pose);
-                let link_transforms = link_transforms.then(|| q.link_transforms());
+                let ops = ops.compute(&q);
                 entry.count_poses(protocol, 1);
                 Ok(StreamAnswer::Fk {
                     fk: FkAnswer { pose, frames },
                     pose_format: fk.pose_format,
                     jacobian,
-                    link_transforms,
+                    ops,
                 })
             }
         }

@@ -276,3 +276,68 @@ async fn a_wrong_joint_count_names_joints_on_every_front_door() {
         .await;
     assert_eq!(r.status(), 400, "unknown field refused");
 }
+
+/// The names of the table's operations (`kinserve_model::config_ops!`).
+macro_rules! op_names {
+    ($( $(#[$doc:meta])* $name:ident: $op:ident => [$($answer:tt)+]; )*) => {
+        &[$( stringify!($name) ),*]
+    };
+}
+
+/// `snake_case` → `CamelCase` (the gRPC method).
+fn camel(name: &str) -> String {
+    name.split('_')
+        .map(|w| w[..1].to_uppercase() + &w[1..])
+        .collect()
+}
+
+/// Every line of the operations table is an operation on every front door:
+/// its REST route and OpenAPI operation, its WebSocket flag and reply field
+/// (answered as REST answers), its gRPC method and stream flag in the proto
+/// the server serves, and its CLI subcommand. Fails for an operation that a
+/// front door's expansion of the table misses.
+#[tokio::test]
+async fn every_operation_of_the_table_is_on_every_front_door() {
+    let names: &[&str] = kinserve::model::config_ops!(op_names);
+    assert!(names.contains(&"link_transforms"), "{names:?}");
+    let app = spawn_app().await;
+    let doc: Value = app.get("/openapi.json").await.json().await.unwrap();
+    let proto = include_str!("../../proto/kinematics/v1/kinematics.proto");
+    let (robot, q) = ROBOTS[0];
+    let mut ws = open_ws(&app, robot).await;
+    for (i, name) in names.iter().enumerate() {
+        let path = format!("/v1/robots/{{name}}/{}", name.replace('_', "-"));
+        let op = &doc["paths"][&path]["post"];
+        assert_eq!(op["operationId"], *name, "{path} in the OpenAPI document");
+        let ws_flag = &doc["components"]["schemas"]["WsRequest"]["properties"][name];
+        assert_eq!(ws_flag["type"], "boolean", "WsRequest.{name}");
+        let rpc = format!("rpc {}(", camel(name));
+        assert!(proto.contains(&rpc), "{rpc} in the proto");
+        assert!(
+            proto.contains(&format!("bool include_{name} = ")),
+            "StreamForwardKinematicsRequest.include_{name}"
+        );
+        // REST and WebSocket answer the same.
+        let route = format!("/v1/robots/{robot}/{}", name.replace('_', "-"));
+        let rest: Value = app
+            .post(&route, &json!({"joints": q}))
+            .await
+            .json()
+            .await
+            .unwrap();
+        let text = json!({"id": i, "joints": q, *name: true}).to_string();
+        ws.send(Message::Text(text.into())).await.unwrap();
+        let reply = next_text(&mut ws).await.expect("a reply");
+        assert!(
+            !reply[name].is_null(),
+            "WebSocket reply has {name}: {reply}"
+        );
+        assert_eq!(reply[name], rest[name], "WebSocket {name} = REST");
+        // The CLI has the subcommand.
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_kinserve"))
+            .args([&name.replace('_', "-"), "--help"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "kinserve {name} --help");
+    }
+}

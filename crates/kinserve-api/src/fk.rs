@@ -4,8 +4,7 @@
 //! the model and [`crate::pb`] only.
 
 use kinserve_model::{
-    AngleUnit, Configurations, FkBatchSpec, FkOptions, FkSpec, LinkTransformsSpec, ModelError,
-    PoseFormat, Result,
+    AngleUnit, Configurations, FkBatchSpec, FkOptions, FkSpec, ModelError, PoseFormat, Result,
 };
 
 use crate::pb;
@@ -50,17 +49,6 @@ impl TryFrom<pb::ForwardKinematicsBatchRequest> for FkBatchSpec {
             configurations: configurations(&r.configurations),
             options,
             pose_format,
-        })
-    }
-}
-
-impl TryFrom<pb::LinkTransformsRequest> for LinkTransformsSpec {
-    type Error = ModelError;
-    fn try_from(r: pb::LinkTransformsRequest) -> Result<LinkTransformsSpec> {
-        let (options, _, _) = r.options.read()?;
-        Ok(LinkTransformsSpec {
-            joints: r.joints,
-            options,
         })
     }
 }

@@ -34,6 +34,7 @@ mod duration;
 mod fk;
 mod ik;
 mod jacobian;
+mod operations;
 mod pose;
 mod robot;
 mod stream;
@@ -44,6 +45,7 @@ pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb}
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
+pub use operations::{PbConfigOp, put_stream_answers, stream_ops};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};
 pub use urdf::import_convention_from_pb;

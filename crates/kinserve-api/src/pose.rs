@@ -1,28 +1,16 @@
 //! Poses on the wire: a [`Transform`] as a `pb::Pose` message, or many in a
 //! compact format as one `pb::PackedPoses` (one pre-sized vector, nothing per
-//! pose), and link transforms. Depends on the model, the kinematics crate and
+//! pose). Depends on the model, the kinematics crate and
 //! [`crate::pb`] only.
 
 use kinserve_kinematics::Transform;
-use kinserve_model::{LinkTransform, PoseFormat};
+use kinserve_model::PoseFormat;
 
 use crate::pb;
 
 impl From<&Transform> for pb::Pose {
     fn from(t: &Transform) -> Self {
         pose_to_pb(t)
-    }
-}
-
-impl From<&LinkTransform> for pb::LinkTransform {
-    fn from(l: &LinkTransform) -> Self {
-        let matrix = |t: &Transform| pb::Matrix4 {
-            values: t.matrix().iter().flatten().copied().collect(),
-        };
-        pb::LinkTransform {
-            matrix: Some(matrix(&l.matrix)),
-            inverse: Some(matrix(&l.inverse)),
-        }
     }
 }
 

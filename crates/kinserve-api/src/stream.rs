@@ -1,6 +1,7 @@
 //! A gRPC stream message → the robot it names and the [`StreamOp`] it asks
 //! for (the same operation a WebSocket message converts into). Depends on the
-//! model, [`crate::fk`], [`crate::jacobian`] and [`crate::pb`].
+//! model, [`crate::fk`], [`crate::jacobian`], [`crate::operations`] and
+//! [`crate::pb`].
 
 use kinserve_model::{FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
 
@@ -10,7 +11,7 @@ use crate::pb;
 
 impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
     type Error = ModelError;
-    /// FK (with the Jacobian and link transforms when asked for) or IK; `ik`
+    /// FK (with the Jacobian and the operations on one configuration when asked for) or IK; `ik`
     /// with joints, or an `ik.robot` other than the message's, is refused.
     fn try_from(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
         if let Some(path) = msg.ik_path {
@@ -48,6 +49,7 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
         } else {
             None
         };
+        let ops = crate::operations::stream_ops(&msg);
         let (options, frames, pose_format) = msg.options.read()?;
         Ok(StreamOp::Fk {
             fk: FkSpec {
@@ -57,7 +59,7 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
                 pose_format,
             },
             jacobian,
-            link_transforms: msg.include_link_transforms,
+            ops,
         })
     }
 }

@@ -27,6 +27,7 @@ mod ik_path;
 mod ik_solutions;
 mod joints;
 mod json;
+pub mod operations;
 mod pose_format;
 mod requests;
 mod robot;
@@ -57,8 +58,7 @@ pub use json::{
 };
 pub use pose_format::{PoseFormat, matrix12};
 pub use requests::{
-    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransform,
-    LinkTransformsSpec, StreamOp,
+    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, StreamOp,
 };
 pub use robot::{FkOptions, Joint, ModelLimits, Robot};
 pub use spec::{

@@ -1,20 +1,22 @@
 //! Protocol-neutral requests: one type per operation (FK, FK batch, Jacobian,
-//! Jacobian batch, link transforms; IK's are [`IkSpec`] and
+//! Jacobian batch; IK's are [`IkSpec`] and
 //! [`IkBatchSpec`](crate::IkBatchSpec)), and [`StreamOp`], what one stream
 //! message asks for. REST bodies, WebSocket messages and gRPC messages
 //! convert into these; the server's service takes these and nothing else.
 //!
-//! Depends on the model's robot, joints, velocity, IK and pose-format modules
+//! The operations answered from one validated configuration are declared in
+//! [`crate::operations`], their request is [`crate::operations::ConfigSpec`].
+//!
+//! Depends on the model's robot, operations, velocity, IK and pose-format modules
 //! and on serde (the batch configurations are read straight into one
 //! buffer); must not depend on any protocol.
 
 use std::fmt;
 
-use kinserve_kinematics::{JointKind, Transform, link_transform};
 use serde::de::{self, DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
-use crate::joints::JointVector;
+use crate::operations::ConfigOps;
 use crate::{FkOptions, IkPathSpec, IkSpec, PoseFormat, ReferenceFrame};
 
 /// Many joint configurations stored back to back: `values` holds them all and
@@ -145,82 +147,22 @@ pub struct JacobianBatchSpec {
     pub frame: ReferenceFrame,
 }
 
-/// Each DH row's link matrix `ⁱ⁻¹Aᵢ` and its inverse at one configuration.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LinkTransformsSpec {
-    /// Joint values (see [`FkSpec::joints`]).
-    pub joints: Vec<f64>,
-    /// Angle unit and limit check.
-    pub options: FkOptions,
-}
-
 /// What one stream message (WebSocket or gRPC) asks for.
 #[derive(Clone, Debug, PartialEq)]
 pub enum StreamOp {
-    /// FK, with the Jacobian (rows in this frame) and the link transforms
-    /// when asked for.
+    /// FK, with the Jacobian (rows in this frame) and the operations on one
+    /// configuration when asked for.
     Fk {
         /// The FK request.
         fk: FkSpec,
         /// The Jacobian too, its rows in this frame.
         jacobian: Option<ReferenceFrame>,
-        /// The link transforms too.
-        link_transforms: bool,
+        /// The operations on one configuration asked for beside FK
+        /// ([`crate::operations`]: one flag each).
+        ops: ConfigOps,
     },
     /// Inverse kinematics.
     Ik(Box<IkSpec>),
     /// A Cartesian path.
     IkPath(Box<IkPathSpec>),
-}
-
-/// One DH row's link matrix and its inverse (see [`JointVector::link_transforms`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LinkTransform {
-    /// `ⁱ⁻¹Aᵢ`: frame `i` in frame `i−1`, in the model's length unit.
-    pub matrix: Transform,
-    /// `(ⁱ⁻¹Aᵢ)⁻¹ = [Rᵀ | −Rᵀp]`.
-    pub inverse: Transform,
-}
-
-impl JointVector<'_> {
-    /// Every DH row's link matrix `ⁱ⁻¹Aᵢ` at these joint values and its
-    /// closed-form inverse, in table order (fixed rows included; base and tool
-    /// are not rows): `base · A₁ ⋯ Aₙ · tool` is the tool pose. Computed by
-    /// the textbook definition ([`link_transform`]), not the fast path.
-    ///
-    /// ```
-    /// use kinserve_model::{FkOptions, ModelLimits, Robot};
-    /// let robot = Robot::from_json(br#"{"name": "two_r", "convention": "standard",
-    ///   "links": [{"joint": "revolute", "a": 0.4, "alpha": 0, "d": 0, "theta": 0},
-    ///             {"joint": "revolute", "a": 0.3, "alpha": 0, "d": 0, "theta": 0}]}"#,
-    ///   &ModelLimits::default()).unwrap();
-    /// let q = robot.check_joints(&[0.5, -0.2], &FkOptions::default()).unwrap();
-    /// let links = q.link_transforms();
-    /// let product = links[0].matrix.compose(&links[1].matrix);
-    /// let tool = q.fk();
-    /// for i in 0..3 {
-    ///     assert!((product.translation[i] - tool.translation[i]).abs() < 1e-12);
-    /// }
-    /// ```
-    pub fn link_transforms(&self) -> Vec<LinkTransform> {
-        let chain = self.robot().chain();
-        let convention = chain.convention();
-        let scale = self.angle_scale();
-        let mut q = self.values().iter();
-        chain
-            .dh_rows()
-            .map(|row| {
-                let v = match row.kind {
-                    JointKind::Revolute => q.next().map_or(0.0, |x| x * scale),
-                    JointKind::Prismatic => q.next().copied().unwrap_or(0.0),
-                    JointKind::Fixed => 0.0,
-                };
-                let matrix = link_transform(convention, &row, v);
-                LinkTransform {
-                    matrix,
-                    inverse: matrix.inverse(),
-                }
-            })
-            .collect()
-    }
 }

@@ -10,14 +10,17 @@ use super::pb::kinematics_service_server::KinematicsService;
 use super::stream::{End, FkStream, close_if_stuck};
 use super::{GrpcService, authorization, pb, streams};
 use crate::error::Error;
+use crate::model::operations;
 use crate::model::{
     FkBatchSpec, FkSpec, IkBatchSpec, IkPathSpec, IkSpec, JacobianBatchSpec, JacobianSpec,
-    LinkTransformsSpec, RobotSpec, UrdfImport,
+    RobotSpec, UrdfImport,
 };
 use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::service::FkAnswer;
 use crate::telemetry::{Protocol, StreamGuard};
-use kinserve_api::{packed_to_pb, pose_to_pb};
+use kinserve_api::{PbConfigOp, packed_to_pb, pose_to_pb};
+use std::future::Future;
+use std::pin::Pin;
 
 /// Origin → proto enum.
 fn origin_to_pb(o: Origin) -> pb::RobotSource {
@@ -65,8 +68,57 @@ fn registered(entry: &Entry, created: bool) -> pb::RegisterRobotResponse {
     }
 }
 
+/// Writes the gRPC method of every operation on one configuration (the
+/// table [`crate::model::config_ops!`]) inside the service impl. The impl is
+/// `#[tonic::async_trait]`, which leaves macro calls alone, so the methods
+/// are written in the form it gives its own (a boxed `Send` future).
+macro_rules! grpc_config_methods {
+    ($( $(#[$doc:meta])* $name:ident: $op:ident => [$($answer:tt)+]; )*) => {
+        $(
+            $(#[$doc])*
+            fn $name<'life0, 'async_trait>(
+                &'life0 self,
+                req: Request<<operations::$op as PbConfigOp>::Request>,
+            ) -> Pin<Box<
+                dyn Future<Output = Result<Response<<operations::$op as PbConfigOp>::Response>, Status>>
+                    + Send
+                    + 'async_trait,
+            >>
+            where
+                'life0: 'async_trait,
+                Self: 'async_trait,
+            {
+                Box::pin(std::future::ready(self.config_op::<operations::$op>(req)))
+            }
+        )*
+    };
+}
+
+impl GrpcService {
+    /// An operation on one configuration: admitted, the robot looked up, the
+    /// request validated once, the answer computed on this task.
+    fn config_op<Op: PbConfigOp>(
+        &self,
+        req: Request<Op::Request>,
+    ) -> Result<Response<Op::Response>, Status> {
+        let (_, _permit) = self.admit(&req)?;
+        let req = req.into_inner();
+        let entry = self.service.robot_at(Op::robot(&req), "robot")?;
+        let spec = Op::spec(req).map_err(Error::from)?;
+        let answer = self.service.config_op::<Op>(&entry.robot, &spec)?;
+        let robot = entry.robot.name().to_string();
+        Ok(Response::new(Op::response(
+            robot,
+            entry.robot.length_unit(),
+            &answer,
+        )))
+    }
+}
+
 #[tonic::async_trait]
 impl KinematicsService for GrpcService {
+    crate::model::config_ops!(grpc_config_methods);
+
     async fn list_robots(
         &self,
         req: Request<pb::ListRobotsRequest>,
@@ -363,23 +415,6 @@ impl KinematicsService for GrpcService {
             length_unit,
             angle_unit,
         )))
-    }
-
-    async fn link_transforms(
-        &self,
-        req: Request<pb::LinkTransformsRequest>,
-    ) -> Result<Response<pb::LinkTransformsResponse>, Status> {
-        let (_, _permit) = self.admit(&req)?;
-        let req = req.into_inner();
-        let entry = self.service.robot_at(&req.robot, "robot")?;
-        let spec = LinkTransformsSpec::try_from(req).map_err(Error::from)?;
-        let links = self.service.link_transforms(&entry.robot, &spec)?;
-        let (robot, length_unit) = names(&entry);
-        Ok(Response::new(pb::LinkTransformsResponse {
-            robot,
-            length_unit,
-            link_transforms: links.iter().map(pb::LinkTransform::from).collect(),
-        }))
     }
 
     async fn get_closed_form(

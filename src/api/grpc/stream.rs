@@ -99,7 +99,7 @@ fn stream_response(
             fk,
             pose_format,
             jacobian,
-            link_transforms,
+            ops,
         } => {
             let frames = fk.frames.unwrap_or_default();
             let (result, frames, packed_frames) =
@@ -115,21 +115,17 @@ fn stream_response(
                         packed_to_pb(pose_format, frames.iter()).filter(|p| !p.values.is_empty()),
                     ),
                 };
-            pb::StreamForwardKinematicsResponse {
+            let mut reply = pb::StreamForwardKinematicsResponse {
                 id: 0,
                 result: Some(result),
                 length_unit: unit,
                 frames,
                 jacobian: jacobian.map(|j| Box::new(pb::JacobianResult::from(&j))),
-                ik: None,
-                ik_path: None,
                 packed_frames,
-                link_transforms: link_transforms
-                    .unwrap_or_default()
-                    .iter()
-                    .map(pb::LinkTransform::from)
-                    .collect(),
-            }
+                ..Default::default()
+            };
+            kinserve_api::put_stream_answers(&ops, &mut reply);
+            reply
         }
     }
 }

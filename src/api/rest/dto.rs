@@ -6,13 +6,13 @@ use utoipa::ToSchema;
 use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositions};
 use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
 use crate::kinematics::Transform;
+use crate::model::operations::{ConfigAnswers, ConfigOps, ConfigSpec};
 use crate::model::{
     AngleUnit, ConventionSpec, FkOptions, IkAnswer, IkBranch, IkPathSpec, IkSolutionItem,
     IkSolverUsed, IkSpec, LengthUnit, PathStop, ReferenceFrame, Singularity,
 };
 use crate::model::{
-    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, LinkTransformsSpec,
-    StreamOp,
+    Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, StreamOp,
 };
 
 fn default_true() -> bool {
@@ -182,11 +182,12 @@ impl From<JacobianRequest> for JacobianSpec {
     }
 }
 
-/// `POST /v1/robots/{name}/link-transforms`.
+/// The body of every operation on one configuration (`POST
+/// /v1/robots/{name}/{operation}`; see [`crate::model::operations`]).
 #[derive(Clone, Debug, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"joints": [0.5, 0.1], "angle_unit": "rad"}))]
-pub struct LinkTransformsRequest {
+pub struct JointsRequest {
     /// One value per movable joint in table order: revolute in `angle_unit`, prismatic in the model length unit.
     pub joints: Vec<f64>,
     /// Unit of revolute joint values (default `rad`).
@@ -197,9 +198,9 @@ pub struct LinkTransformsRequest {
     pub check_limits: bool,
 }
 
-impl From<LinkTransformsRequest> for LinkTransformsSpec {
-    fn from(r: LinkTransformsRequest) -> LinkTransformsSpec {
-        LinkTransformsSpec {
+impl From<JointsRequest> for ConfigSpec {
+    fn from(r: JointsRequest) -> ConfigSpec {
+        ConfigSpec {
             options: options(r.angle_unit, r.check_limits),
             joints: r.joints,
         }
@@ -337,6 +338,10 @@ impl<'a> FkBatchResponse<'a> {
     }
 }
 
+/// Writes [`WsRequest`] and its conversion with one flag per operation on one
+/// configuration (the table [`crate::model::config_ops!`]).
+macro_rules! ws_request {
+    ($( $(#[$doc:meta])* $name:ident: $op:ident => [$($answer:tt)+]; )*) => {
 /// A WebSocket request: like [`FkRequest`] plus a client `id` echoed in the
 /// reply; with `"jacobian": true` the reply carries the Jacobian too; with
 /// `"ik": {...}` (an IK request body, and no `joints`) it is an IK request.
@@ -362,10 +367,14 @@ pub struct WsRequest {
     /// A Cartesian path instead of FK (like the body of `POST /v1/robots/{name}/ik/path`).
     #[serde(default)]
     pub ik_path: Option<IkPathSpec>,
-    /// Also return each DH row's link matrix and its inverse (default false;
-    /// as `POST …/link-transforms` answers them).
-    #[serde(default)]
-    pub link_transforms: bool,
+    $(
+        $(#[$doc])*
+        ///
+        /// Also answered with FK when `true` (default false), under its own
+        /// name, as its REST route answers it.
+        #[serde(default)]
+        pub $name: bool,
+    )*
     /// Unit of revolute joint values (default `rad`).
     #[serde(default)]
     pub angle_unit: AngleUnit,
@@ -383,8 +392,9 @@ pub struct WsRequest {
 
 impl TryFrom<WsRequest> for StreamOp {
     type Error = crate::model::ModelError;
-    /// FK (with the Jacobian and link transforms when asked for) or IK; both
-    /// `joints` and `ik`, or neither, is refused naming `joints`.
+    /// FK (with the Jacobian and the operations on one configuration when
+    /// asked for) or IK; both `joints` and `ik`, or neither, is refused
+    /// naming `joints`.
     fn try_from(r: WsRequest) -> Result<StreamOp, Self::Error> {
         use crate::model::ModelError;
         if let Some(path) = r.ik_path {
@@ -415,11 +425,17 @@ impl TryFrom<WsRequest> for StreamOp {
                     pose_format: r.pose_format,
                 },
                 jacobian: r.jacobian.then_some(r.frame),
-                link_transforms: r.link_transforms,
+                ops: ConfigOps {
+                    $( $name: r.$name, )*
+                },
             }),
         }
     }
 }
+    };
+}
+
+crate::model::config_ops!(ws_request);
 
 /// Just the `id` of a WebSocket message that failed to parse.
 #[derive(Deserialize)]
@@ -483,10 +499,10 @@ pub struct WsReply<'a> {
     /// For a Cartesian path: the answer (as `POST …/ik/path` answers it).
     #[serde(flatten)]
     pub ik_path: Option<WsIkPath>,
-    /// With `"link_transforms": true`: each DH row's link matrix and its
-    /// inverse (as `POST …/link-transforms` answers them).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub link_transforms: Option<Vec<LinkTransformItem>>,
+    /// The operations on one configuration asked for (`"<name>": true`),
+    /// each under its name as its REST route answers it.
+    #[serde(flatten)]
+    pub ops: ConfigAnswers,
     /// The problem, on failure.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<super::problem::Problem>,
@@ -507,7 +523,7 @@ impl<'a> WsReply<'a> {
             jacobian: None,
             ik: None,
             ik_path: None,
-            link_transforms: None,
+            ops: ConfigAnswers::default(),
             error: None,
         }
     }
@@ -561,41 +577,6 @@ impl From<&crate::model::JacobianAnswer> for WsJacobian {
             singular: item.singular,
         }
     }
-}
-
-/// One DH row's link matrix `ⁱ⁻¹Aᵢ` and its inverse.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct LinkTransformItem {
-    /// `ⁱ⁻¹Aᵢ`: frame `i` in frame `i−1`, homogeneous 4×4, row-major, robot length unit.
-    pub matrix: [[f64; 4]; 4],
-    /// Its inverse `[Rᵀ | −Rᵀp]`, homogeneous 4×4, row-major.
-    pub inverse: [[f64; 4]; 4],
-}
-
-impl From<&crate::model::LinkTransform> for LinkTransformItem {
-    fn from(l: &crate::model::LinkTransform) -> Self {
-        LinkTransformItem {
-            matrix: l.matrix.matrix(),
-            inverse: l.inverse.matrix(),
-        }
-    }
-}
-
-/// `POST /v1/robots/{name}/link-transforms` response and `kinserve link-transforms` output.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!({"robot": "planar_2dof", "length_unit": "m", "link_transforms": [
-    {"matrix": [[0.8775825618903728, -0.479425538604203, 0.0, 0.3510330247561491], [0.479425538604203, 0.8775825618903728, 0.0, 0.1917702154416812], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-     "inverse": [[0.8775825618903728, 0.479425538604203, 0.0, -0.4], [-0.479425538604203, 0.8775825618903728, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]},
-    {"matrix": [[0.9950041652780258, -0.09983341664682815, 0.0, 0.29850124958340776], [0.09983341664682815, 0.9950041652780258, 0.0, 0.029950024994048446], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-     "inverse": [[0.9950041652780258, 0.09983341664682815, 0.0, -0.3], [-0.09983341664682815, 0.9950041652780258, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]}]}))]
-pub struct LinkTransformsOutput {
-    /// Robot name.
-    pub robot: String,
-    /// Length unit of the translations.
-    pub length_unit: LengthUnit,
-    /// One per DH row in table order (fixed rows included; base and tool are
-    /// not rows): `base · A₁ ⋯ Aₙ · tool` is the tool pose.
-    pub link_transforms: Vec<LinkTransformItem>,
 }
 
 /// The path part of a WebSocket reply (see [`crate::api::ik::IkPathOutput`]).

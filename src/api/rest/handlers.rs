@@ -7,7 +7,6 @@ use axum::response::{IntoResponse, Response};
 
 use super::AppState;
 use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
-use super::dto::{LinkTransformItem, LinkTransformsOutput, LinkTransformsRequest};
 use super::dto::{ListParams, Readiness, StoreState};
 use super::export::PLANAR_URDF_EXAMPLE;
 use super::extract::{Client, JsonBody, RobotName};
@@ -366,33 +365,6 @@ pub async fn fk_batch(
         spec.pose_format,
         poses,
     )?)
-}
-
-/// Each DH row's link matrix `ⁱ⁻¹Aᵢ` (the course notes' factors of the arm
-/// matrix) and its closed-form inverse at one configuration, in table order;
-/// `base · A₁ ⋯ Aₙ · tool` is the tool pose.
-#[utoipa::path(post, path = "/v1/robots/{name}/link-transforms", tag = "fk", request_body = LinkTransformsRequest,
-    params(("name" = String, Path, description = "Robot name")),
-    responses((status = 200, body = LinkTransformsOutput),
-        (status = 400, body = Problem, content_type = "application/problem+json"),
-        (status = 404, body = Problem, content_type = "application/problem+json"),
-        (status = 413, body = Problem, content_type = "application/problem+json"),
-        (status = 415, body = Problem, content_type = "application/problem+json"),
-        (status = 422, body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "Overloaded or timed out (Retry-After)", body = Problem, content_type = "application/problem+json")))]
-pub async fn link_transforms(
-    State(state): State<AppState>,
-    RobotName(name): RobotName,
-    JsonBody(req): JsonBody<LinkTransformsRequest>,
-) -> ApiResult<Json<LinkTransformsOutput>> {
-    let entry = state.service.robot(&name)?;
-    let robot = &entry.robot;
-    let links = state.service.link_transforms(robot, &req.into())?;
-    Ok(Json(LinkTransformsOutput {
-        robot: robot.name().to_string(),
-        length_unit: robot.length_unit(),
-        link_transforms: links.iter().map(LinkTransformItem::from).collect(),
-    }))
 }
 
 /// Unknown route: 404 problem.

@@ -11,6 +11,7 @@ mod ik;
 mod import;
 mod jacobian;
 mod openapi;
+pub mod ops;
 mod playground;
 pub mod problem;
 mod routes;
@@ -40,8 +41,8 @@ use utoipa_swagger_ui::SwaggerUi;
 pub use body_budget::{ByteBudget, Reservation, RestBudgets};
 pub use conn::ConnActivity;
 pub use dto::{
-    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, LinkTransformItem,
-    LinkTransformsOutput, LinkTransformsRequest, RobotList, RobotSummaryDto, WsRequest,
+    FkBatchRequest, FkRequest, JacobianBatchRequest, JacobianRequest, JointsRequest, RobotList,
+    RobotSummaryDto, WsRequest,
 };
 pub use export::{PLANAR_CLOSED_FORM_EXAMPLE, PLANAR_URDF_EXAMPLE};
 pub use extract::{Client, PeerAddr};

@@ -18,7 +18,7 @@ use utoipa_axum::router::{OpenApiRouter, UtoipaMethodRouterExt};
 use utoipa_axum::routes;
 
 use super::openapi::Complete;
-use super::{Admission, ApiDoc, AppState, export, handlers, ik, jacobian, playground, ws};
+use super::{Admission, ApiDoc, AppState, export, handlers, ik, jacobian, ops, playground, ws};
 
 /// The groups routes are declared in; each group is admitted its own way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,12 +51,13 @@ fn declared(
         .routes(routes!(handlers::fk))
         .routes(routes!(jacobian::jacobian))
         .routes(routes!(ik::ik))
-        .routes(routes!(handlers::link_transforms))
         // GET: the HTTP/1.1 upgrade; CONNECT: WebSockets over HTTP/2 (RFC 8441),
         // not an operation of its own (OpenAPI has no CONNECT).
         .routes(routes!(ws::stream).map(|r| r.connect(ws::stream)))
         .routes(routes!(export::closed_form))
         .routes(routes!(export::urdf));
+    // The operations on one configuration, one route each (from the table).
+    let single = ops::routes(single);
     let batch = OpenApiRouter::default()
         .routes(routes!(handlers::fk_batch))
         .routes(routes!(jacobian::jacobian_batch))

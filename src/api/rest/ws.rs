@@ -13,7 +13,7 @@ use futures_util::{FutureExt, SinkExt};
 use tokio::time::Instant;
 
 use super::AppState;
-use super::dto::{LinkTransformItem, WsIdOnly, WsIk, WsIkPath, WsJacobian, WsReply, WsRequest};
+use super::dto::{WsIdOnly, WsIk, WsIkPath, WsJacobian, WsReply, WsRequest};
 use super::extract::{Client, RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
@@ -310,7 +310,7 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 }
 
 /// A successful reply: FK (pose and frames in the message's format, with the
-/// Jacobian and link transforms when asked for) or IK (always the full pose).
+/// Jacobian and the operations on one configuration when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
         StreamAnswer::IkPath(a) => WsReply {
@@ -331,12 +331,10 @@ fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnsw
             fk,
             pose_format,
             jacobian,
-            link_transforms,
+            ops,
         } => WsReply {
             jacobian: jacobian.as_ref().map(WsJacobian::from),
-            link_transforms: link_transforms
-                .as_deref()
-                .map(|l| l.iter().map(LinkTransformItem::from).collect()),
+            ops: ops.clone(),
             ..WsReply::posed(id, length_unit, *pose_format, fk.pose, fk.frames.as_deref())
         },
     };
