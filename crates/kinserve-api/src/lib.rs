@@ -8,6 +8,11 @@
 //! field paths in every error) and answers out (`From<&…>` for the `pb`
 //! messages).
 //!
+//! It also owns the packed binary batch layout of REST's
+//! `application/octet-stream` bodies (little-endian float64; see
+//! [`configurations_from_le`] and [`poses_to_le`]) and the protobuf batch
+//! answers REST's `application/x-protobuf` shares with gRPC ([`fk_batch_to_pb`]).
+//!
 //! It also holds the one parser of durations given on the command line
 //! ([`parse_duration`]), shared by the server and `kinserve-load`.
 //!
@@ -34,6 +39,7 @@ mod duration;
 mod fk;
 mod ik;
 mod jacobian;
+mod packed;
 mod pose;
 mod robot;
 mod stream;
@@ -44,6 +50,10 @@ pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb}
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
+pub use packed::{
+    F64_BYTES, configurations_from_le, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
+    jacobians_to_le, packed_count, packed_format, poses_to_le,
+};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};
 pub use urdf::import_convention_from_pb;
