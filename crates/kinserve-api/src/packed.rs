@@ -27,9 +27,7 @@
 //! Depends on the model, the kinematics crate and [`crate::pb`] only.
 
 use kinserve_kinematics::Transform;
-use kinserve_model::{
-    Configurations, JacobianAnswer, LengthUnit, ModelError, PoseFormat, Result,
-};
+use kinserve_model::{Configurations, JacobianAnswer, LengthUnit, ModelError, PoseFormat, Result};
 
 use crate::pb;
 use crate::pose::{packed_to_pb, pose_to_pb};
@@ -49,12 +47,8 @@ pub const F64_BYTES: usize = 8;
 /// ```
 pub fn configurations_from_le(bytes: &[u8], dof: usize) -> Result<Configurations> {
     let row = dof.saturating_mul(F64_BYTES);
-    let whole = if row == 0 {
-        bytes.is_empty()
-    } else {
-        bytes.len() % row == 0
-    };
-    if !whole {
+    // With no joints, only an empty body is whole (`n.is_multiple_of(0)` is `n == 0`).
+    if !bytes.len().is_multiple_of(row) {
         return Err(ModelError::malformed_field(
             "body",
             format!(

@@ -32,8 +32,8 @@ use axum::response::{IntoResponse, Response};
 use prost::Message;
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
-use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, Schema, SchemaFormat, Type};
 use utoipa::openapi::RefOr;
+use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, Schema, SchemaFormat, Type};
 
 use super::AppState;
 use super::dto::{FkBatchRequest, JacobianBatchRequest};
@@ -94,9 +94,10 @@ const OFFERS: [(Media, &str, &str); 3] = [
 /// The answer format `Accept` asks for (RFC 9110 §12.5.1): each offer takes
 /// the quality of the most specific range that matches it; the highest
 /// quality wins, then the most specific match, then JSON before protobuf
-/// before packed. No `Accept` (or `*/*`): JSON. None acceptable: 406.
+/// before packed. No `Accept` (or `*/*`): JSON. None acceptable: `None`
+/// (answered with [`not_acceptable`]'s 406).
 /// `packed` says whether the route answers [`PACKED`].
-pub fn negotiate(headers: &HeaderMap, packed: bool) -> Result<Media, Problem> {
+pub fn negotiate(headers: &HeaderMap, packed: bool) -> Option<Media> {
     let ranges: Vec<(&str, &str, u16)> = headers
         .get_all(header::ACCEPT)
         .iter()
@@ -105,7 +106,7 @@ pub fn negotiate(headers: &HeaderMap, packed: bool) -> Result<Media, Problem> {
         .filter_map(media_range)
         .collect();
     if ranges.is_empty() {
-        return Ok(Media::Json);
+        return Some(Media::Json);
     }
     let mut best: Option<(u16, u8, Media)> = None;
     for (media, kind, sub) in OFFERS {
@@ -124,7 +125,6 @@ pub fn negotiate(headers: &HeaderMap, packed: bool) -> Result<Media, Problem> {
         }
     }
     best.map(|(_, _, media)| media)
-        .ok_or_else(|| not_acceptable(headers, packed))
 }
 
 /// One media range of `Accept`: type, subtype and quality in thousandths
@@ -154,6 +154,7 @@ fn specificity(k: &str, s: &str, kind: &str, sub: &str) -> Option<u8> {
     }
 }
 
+/// The 406 problem: what `Accept` said and what the route answers in.
 fn not_acceptable(headers: &HeaderMap, packed: bool) -> Problem {
     let asked: String = headers
         .get_all(header::ACCEPT)
@@ -218,7 +219,9 @@ impl<K: BatchKind> FromRequest<AppState> for BatchBody<K> {
     type Rejection = Response;
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
-        let answer = negotiate(req.headers(), K::PACKED).map_err(IntoResponse::into_response)?;
+        let Some(answer) = negotiate(req.headers(), K::PACKED) else {
+            return Err(not_acceptable(req.headers(), K::PACKED).into_response());
+        };
         let unread = super::has_body(req.headers());
         let request = read::<K>(req, state)
             .await
@@ -366,10 +369,7 @@ impl BatchKind for JacobianBatch {
     fn from_proto(msg: Self::Proto) -> Result<JacobianBatchSpec, Error> {
         Ok(JacobianBatchSpec::try_from(msg)?)
     }
-    fn from_packed(
-        c: Configurations,
-        q: PackedJacobianQuery,
-    ) -> Result<JacobianBatchSpec, Error> {
+    fn from_packed(c: Configurations, q: PackedJacobianQuery) -> Result<JacobianBatchSpec, Error> {
         Ok(JacobianBatchSpec {
             configurations: c,
             options: FkOptions::new(q.angle_unit, q.check_limits),
