@@ -473,6 +473,9 @@ pub struct Binary;
 impl utoipa::PartialSchema for Binary {
     fn schema() -> RefOr<Schema> {
         ObjectBuilder::new()
+            .description(Some(
+                "Bytes: a protobuf message or packed little-endian float64, as the operation says.",
+            ))
             .schema_type(Type::String)
             .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
             .into()

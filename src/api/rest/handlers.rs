@@ -337,8 +337,9 @@ fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
     Ok(super::streamed::json_answer(bytes))
 }
 
-/// Forward kinematics of many configurations; poses in request order. Also
-/// in binary: `application/x-protobuf` (gRPC's `ForwardKinematicsBatch`
+/// Forward kinematics of many configurations; poses in request order.
+///
+/// Also in binary: `application/x-protobuf` (gRPC's `ForwardKinematicsBatch`
 /// messages) and `application/octet-stream` (packed little-endian float64:
 /// `n × dof` joint values in, `n × 12` (`matrix`; `full` is written as
 /// `matrix`) or `n × 3` (`position`) numbers out, options as query

@@ -76,6 +76,9 @@ pub async fn ik(
 /// previous converged answer (tracking a path). Every target is answered
 /// (`converged` says which were reached); the batch as a whole is capped in
 /// time, targets left when the cap runs out are answered unsolved.
+///
+/// Also as protobuf: `application/x-protobuf` takes and (by `Accept`) gives
+/// gRPC's `InverseKinematicsBatch` messages.
 #[utoipa::path(post, path = "/v1/robots/{name}/ik/batch", tag = "ik",
     request_body(description = binary::IK_BATCH_BODY, content(
         (IkBatchSpec = "application/json"),

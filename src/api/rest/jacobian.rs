@@ -64,6 +64,12 @@ pub async fn jacobian(
 
 /// Jacobians of many configurations, in request order; one bad configuration
 /// fails the batch, naming it (`configurations[17][2]`).
+///
+/// Also in binary: `application/x-protobuf` (gRPC's `JacobianBatch`
+/// messages) and `application/octet-stream` (packed little-endian float64:
+/// `n × dof` joint values in, `n × (6·dof + 15)` numbers out; options as
+/// query parameters); `Content-Type` says what the body is, `Accept` what
+/// the answer is (default JSON).
 #[utoipa::path(post, path = "/v1/robots/{name}/jacobian/batch", tag = "velocity",
     request_body(description = binary::BATCH_BODY, content(
         (JacobianBatchRequest = "application/json"),
