@@ -98,6 +98,12 @@ const OFFERS: [(Media, &str, &str); 3] = [
 /// (answered with [`not_acceptable`]'s 406).
 /// `packed` says whether the route answers [`PACKED`].
 pub fn negotiate(headers: &HeaderMap, packed: bool) -> Option<Media> {
+    // The common cases, without parsing: none, `*/*` (curl), `application/json`.
+    let mut values = headers.get_all(header::ACCEPT).iter();
+    match (values.next().map(HeaderValue::as_bytes), values.next()) {
+        (None, _) | (Some(b"*/*" | b"application/json"), None) => return Some(Media::Json),
+        _ => {}
+    }
     let ranges: Vec<(&str, &str, u16)> = headers
         .get_all(header::ACCEPT)
         .iter()
@@ -478,6 +484,8 @@ impl utoipa::PartialSchema for Binary {
             ))
             .schema_type(Type::String)
             .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+            // Bytes have no JSON form: the packed configuration [0.5, 0.1], in hex.
+            .examples(["000000000000e03f9a9999999999b93f"])
             .into()
     }
 }
