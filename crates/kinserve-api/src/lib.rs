@@ -35,25 +35,25 @@
 //! assert_eq!(spec.joints.len(), 6);
 //! ```
 
+mod batch;
 mod duration;
 mod fk;
 mod ik;
 mod jacobian;
-mod packed;
 mod pose;
 mod robot;
 mod stream;
 mod urdf;
 
+pub use batch::{
+    F64_BYTES, configurations_from_le, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
+    jacobians_to_le, packed_count, packed_format, poses_to_le,
+};
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
-pub use packed::{
-    F64_BYTES, configurations_from_le, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
-    jacobians_to_le, packed_count, packed_format, poses_to_le,
-};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};
 pub use urdf::import_convention_from_pb;
