@@ -150,7 +150,8 @@ echo
 echo "# batches of 10,000 configurations, end to end (encoding included), 1 connection, by pose format"
 declare -A batch_us
 for f in $formats; do
-  for t in rest-batch grpc-batch; do
+  # rest-batch-packed: the same batch as application/octet-stream both ways.
+  for t in rest-batch rest-batch-packed grpc-batch; do
     fmt=(); [ "$f" = full ] || fmt=(--pose-format "$f")
     json=$(load --target "$t" --concurrency 1 --batch-size 10000 --json "${fmt[@]}")
     batch_us[$t.$f]=$(python3 - "$t" "$f" "$json" <<'PY'
@@ -158,7 +159,7 @@ import json, sys
 r = json.loads(sys.argv[3])
 pps = r["poses_per_s"]
 us = 1e6 / pps if pps else float("nan")
-print(f"{sys.argv[1]:<12} {sys.argv[2]:<9} {r['requests_per_s']:8.1f} req/s  {pps:12.0f} poses/s  {us:6.3f} µs/pose  p50 {r['latency_us']['p50']/1000:.1f} ms", file=sys.stderr)
+print(f"{sys.argv[1]:<17} {sys.argv[2]:<9} {r['requests_per_s']:8.1f} req/s  {pps:12.0f} poses/s  {us:6.3f} µs/pose  p50 {r['latency_us']['p50']/1000:.1f} ms", file=sys.stderr)
 print(f"{us:.3f}")
 PY
 )
@@ -217,7 +218,8 @@ echo "# server RSS: idle $((idle_rss / 1024)) MB; peak during the table above (u
 echo
 echo "# issue-15 and issue-28 targets (this run)"
 python3 - "${wrk_pairs:-}" "${batch_us[rest-batch.$f16]}" "${batch_us[grpc-batch.$f16]}" \
-  "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" "$core_batch_ns" <<'PY'
+  "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" "$core_batch_ns" \
+  "${batch_us[rest-batch-packed.$f16]}" <<'PY'
 import sys
 a = sys.argv[1:]
 def ms(v):
@@ -238,6 +240,7 @@ rest_us, grpc_us = float(a[1]), float(a[2])
 gh, rest, gs, ws = (float(x) for x in a[3:7])
 idle, peak, fmt = int(a[7]), int(a[8]), a[9]
 core_ns = float(a[10])
+packed_us = float(a[11])
 rows = [
     ("REST FK / healthz req/s (wrk, 64 conn)", ">= 0.9", median(rate)),
     ("REST FK p99 / healthz p99 (wrk, 64 conn)", "<= 1.2", median(p99)),
@@ -247,6 +250,8 @@ rows = [
     (f"WebSocket ({fmt}, 16) / REST FK (16)", ">= 8", f"{ws / rest:.1f}"),
     (f"gRPC 10k {fmt} batch / core batch, per pose", "<= 10", f"{grpc_us * 1000 / core_ns:.1f} (core {core_ns:.1f} ns)"),
     (f"REST 10k {fmt} batch / gRPC's, per pose", "<= 2.5", f"{rest_us / grpc_us:.2f}"),
+    (f"REST 10k {fmt} batch packed / JSON, per pose", "report", f"{packed_us / rest_us:.2f}"),
+    (f"REST 10k {fmt} batch packed / gRPC's, per pose", "report", f"{packed_us / grpc_us:.2f}"),
     ("RSS idle MB", "<= 30", str(idle)),
     ("RSS peak MB over the whole run", "<= 100", str(peak)),
 ]

@@ -8,6 +8,11 @@
 //! field paths in every error) and answers out (`From<&…>` for the `pb`
 //! messages).
 //!
+//! It also owns the packed binary batch layout of REST's
+//! `application/octet-stream` bodies (little-endian float64; see
+//! [`configurations_from_le`] and [`poses_to_le`]) and the protobuf batch
+//! answers REST's `application/x-protobuf` shares with gRPC ([`fk_batch_to_pb`]).
+//!
 //! It also holds the one parser of durations given on the command line
 //! ([`parse_duration`]), shared by the server and `kinserve-load`.
 //!
@@ -30,6 +35,7 @@
 //! assert_eq!(spec.joints.len(), 6);
 //! ```
 
+mod batch;
 mod duration;
 mod fk;
 mod ik;
@@ -40,6 +46,10 @@ mod robot;
 mod stream;
 mod urdf;
 
+pub use batch::{
+    F64_BYTES, configurations_from_le, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
+    jacobians_to_le, packed_count, packed_format, poses_to_le,
+};
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
 pub use ik::angle_unit_to_pb;

@@ -26,6 +26,9 @@ pub enum Target {
     Rest,
     /// `POST /v1/robots/{name}/fk/batch` with `--batch-size` configurations.
     RestBatch,
+    /// The same batch as packed little-endian float64 both ways
+    /// (`application/octet-stream`).
+    RestBatchPacked,
     /// The WebSocket stream, `--pipeline` messages in flight per connection.
     Ws,
     /// gRPC `ForwardKinematics`.
@@ -42,10 +45,11 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 8] = [
+    pub const ALL: [Target; 9] = [
         Target::RestHealth,
         Target::Rest,
         Target::RestBatch,
+        Target::RestBatchPacked,
         Target::Ws,
         Target::GrpcHealth,
         Target::Grpc,
@@ -58,6 +62,7 @@ impl Target {
         match self {
             Target::Rest => "rest",
             Target::RestBatch => "rest-batch",
+            Target::RestBatchPacked => "rest-batch-packed",
             Target::Ws => "ws",
             Target::Grpc => "grpc",
             Target::GrpcBatch => "grpc-batch",
@@ -68,7 +73,10 @@ impl Target {
     }
 
     fn is_batch(self) -> bool {
-        matches!(self, Target::RestBatch | Target::GrpcBatch)
+        matches!(
+            self,
+            Target::RestBatch | Target::RestBatchPacked | Target::GrpcBatch
+        )
     }
 
     /// Loads the gRPC listener (and so may go over TLS with `--tls-ca`).

@@ -138,6 +138,56 @@ fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<
     }
 }
 
+/// One packed batch (`application/octet-stream` both ways): the joint values
+/// as little-endian float64, the answer's poses cut into matrices (12
+/// numbers, `[0, 0, 0, 1]` added for `full`, which is answered as `matrix`)
+/// or positions.
+async fn rest_packed(
+    http: &reqwest::Client,
+    args: &super::LoadArgs,
+    q: &[f64],
+) -> Result<Vec<Vec<f64>>, String> {
+    let format = args.pose_format.json_name().unwrap_or("full");
+    let url = format!(
+        "http://{}/v1/robots/{}/fk/batch?pose_format={format}",
+        args.http_addr, args.robot
+    );
+    let body: Vec<u8> = q.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let octets = "application/octet-stream";
+    let request = http
+        .post(url)
+        .header(reqwest::header::CONTENT_TYPE, octets)
+        .header(reqwest::header::ACCEPT, octets)
+        .body(body);
+    let r = match request.send().await {
+        Ok(r) if r.status().is_success() => r,
+        Ok(r) => return Err(format!("http_{}", r.status().as_u16())),
+        Err(_) => return Err("transport".into()),
+    };
+    let bytes = r.bytes().await.map_err(|_| "transport".to_string())?;
+    let values: Vec<f64> = bytes
+        .chunks_exact(8)
+        .filter_map(|c| c.first_chunk::<8>())
+        .map(|b| f64::from_le_bytes(*b))
+        .collect();
+    let stride = if args.pose_format == PoseFormat::Position {
+        3
+    } else {
+        12
+    };
+    let full = args.pose_format == PoseFormat::Full;
+    Ok(values
+        .chunks(stride)
+        .map(|p| {
+            let mut m = p.to_vec();
+            if full {
+                m.extend_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+            }
+            m
+        })
+        .collect())
+}
+
 /// The numbers of each pose of a gRPC answer: the Pose messages' matrices
 /// (`full`) or the packed values cut into poses.
 fn grpc_poses(
@@ -330,6 +380,7 @@ async fn unary_worker(
                     Err(_) => Err("transport".into()),
                 }
             }
+            Target::RestBatchPacked => rest_packed(&http, args, &q).await,
             Target::GrpcHealth => {
                 let Some(h) = health.as_mut() else {
                     return Err("no health client".into());

@@ -130,7 +130,7 @@ async fn assert_clean_report(
     let poses = report["poses"].as_u64().unwrap();
     match target {
         "rest-health" | "grpc-health" => assert_eq!(poses, 0),
-        "rest-batch" | "grpc-batch" => {
+        "rest-batch" | "rest-batch-packed" | "grpc-batch" => {
             assert_eq!(poses, sent * 50, "{what}: poses per batch")
         }
         _ => assert_eq!(poses, sent, "{what}: one pose per request"),
@@ -144,6 +144,7 @@ async fn every_load_target_runs_clean_with_verification() {
         "rest-health",
         "rest",
         "rest-batch",
+        "rest-batch-packed",
         "ws",
         "grpc-health",
         "grpc",
@@ -166,6 +167,7 @@ async fn compact_pose_formats_run_clean_with_verification_on_every_protocol() {
     for target in [
         "rest",
         "rest-batch",
+        "rest-batch-packed",
         "ws",
         "grpc",
         "grpc-batch",
@@ -173,7 +175,7 @@ async fn compact_pose_formats_run_clean_with_verification_on_every_protocol() {
     ] {
         run_clean(&app, target, "panda", "matrix").await;
     }
-    for target in ["rest-batch", "grpc-batch", "ws"] {
+    for target in ["rest-batch", "rest-batch-packed", "grpc-batch", "ws"] {
         run_clean(&app, target, "puma560", "position").await;
     }
 }

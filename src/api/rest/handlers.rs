@@ -6,6 +6,7 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
+use super::binary::{self, BatchBody, FkBatch, Media};
 use super::dto::{FkBatchRequest, FkBatchResponse, FkReply, FkRequest, RobotList, RobotSummaryDto};
 use super::dto::{ListParams, Readiness, StoreState};
 use super::export::PLANAR_URDF_EXAMPLE;
@@ -14,7 +15,7 @@ use super::import::{self, CreateParams, ReplaceParams, RobotBody, UrdfImportBody
 use super::problem::{ApiError, Problem};
 use crate::api::pose::FkOutput;
 use crate::error::Error;
-use crate::model::{FkBatchSpec, FkSpec, RobotSpec};
+use crate::model::{FkSpec, RobotSpec};
 use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::service::FkAnswer;
 use crate::telemetry::Protocol;
@@ -336,11 +337,28 @@ fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
 }
 
 /// Forward kinematics of many configurations; poses in request order.
-#[utoipa::path(post, path = "/v1/robots/{name}/fk/batch", tag = "fk", request_body = FkBatchRequest,
-    params(("name" = String, Path, description = "Robot name")),
-    responses((status = 200, body = FkBatchResponse),
+///
+/// Also in binary: `application/x-protobuf` (gRPC's `ForwardKinematicsBatch`
+/// messages) and `application/octet-stream` (packed little-endian float64:
+/// `n × dof` joint values in, `n × 12` (`matrix`; `full` is written as
+/// `matrix`) or `n × 3` (`position`) numbers out, options as query
+/// parameters); `Content-Type` says what the body is, `Accept` what the
+/// answer is (default JSON).
+#[utoipa::path(post, path = "/v1/robots/{name}/fk/batch", tag = "fk",
+    request_body(description = binary::BATCH_BODY, content(
+        (FkBatchRequest = "application/json"),
+        (binary::Binary = "application/x-protobuf"),
+        (binary::Binary = "application/octet-stream"))),
+    params(("name" = String, Path, description = "Robot name"), binary::PackedFkQuery),
+    responses((status = 200, description = binary::BATCH_ANSWER, content(
+            (FkBatchResponse = "application/json"),
+            (binary::Binary = "application/x-protobuf"),
+            (binary::Binary = "application/octet-stream")),
+            headers(("Kinserve-Pose-Format" = String, description = "`application/octet-stream` answers: `matrix` or `position`, the layout of each pose"),
+                ("Kinserve-Length-Unit" = String, description = "`application/octet-stream` answers: the robot's length unit (`m` or `mm`)"))),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 406, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, body = Problem, content_type = "application/problem+json"),
@@ -349,15 +367,20 @@ pub async fn fk_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     Client(client): Client,
-    JsonBody(req): JsonBody<FkBatchRequest>,
+    body: BatchBody<FkBatch>,
 ) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
+    let answer = body.answer;
+    let spec = body.spec(&state.service, &entry.robot)?;
     let (poses, spec) = state
         .service
-        .fk_batch_on_pool(client, entry.clone(), FkBatchSpec::from(req))
+        .fk_batch_on_pool(client, entry.clone(), spec)
         .await?;
     let robot = &entry.robot;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
+    if answer != Media::Json {
+        return Ok(binary::fk_answer(answer, robot, spec.pose_format, &poses));
+    }
     // Large answers are written a frame at a time as the connection takes them.
     Ok(super::streamed::batch_answer(
         robot.name(),

@@ -4,9 +4,10 @@
 
 use axum::Json;
 use axum::extract::State;
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 
 use super::AppState;
+use super::binary::{self, BatchBody, IkBatch, Media};
 use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::ik::{IkBatchOutput, IkItem, IkOutput, IkPathOutput};
@@ -75,10 +76,18 @@ pub async fn ik(
 /// previous converged answer (tracking a path). Every target is answered
 /// (`converged` says which were reached); the batch as a whole is capped in
 /// time, targets left when the cap runs out are answered unsolved.
-#[utoipa::path(post, path = "/v1/robots/{name}/ik/batch", tag = "ik", request_body = IkBatchSpec,
+///
+/// Also as protobuf: `application/x-protobuf` takes and (by `Accept`) gives
+/// gRPC's `InverseKinematicsBatch` messages.
+#[utoipa::path(post, path = "/v1/robots/{name}/ik/batch", tag = "ik",
+    request_body(description = binary::IK_BATCH_BODY, content(
+        (IkBatchSpec = "application/json"),
+        (binary::Binary = "application/x-protobuf"))),
     params(("name" = String, Path, description = "Robot name")),
     responses(
-        (status = 200, description = "One answer per target, in request order, converged or not", body = IkBatchOutput,
+        (status = 200, description = "One answer per target, in request order, converged or not: JSON, or with `Accept: application/x-protobuf` the `InverseKinematicsBatchResponse` message", content(
+            (IkBatchOutput = "application/json"),
+            (binary::Binary = "application/x-protobuf")),
             example = json!({"robot": "planar_2dof", "length_unit": "m", "angle_unit": "rad", "results": [
                 {"joints": [0.04323781905251354, 1.186399552468544], "converged": true, "position_error": 3.261475666182992e-11,
                  "orientation_error": null, "iterations": 7,
@@ -99,6 +108,7 @@ pub async fn ik(
                 "detail": "malformed input: targets[0].matrix: invalid length 3, expected an array of length 4",
                 "errors": [{"field": "targets[0].matrix", "message": "invalid length 3, expected an array of length 4"}]})),
         (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 406, description = "`Accept` names none of the answer formats", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "More targets than the batch limit, or body over the size limit", body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413,
                 "detail": "too large: a batch holds at most 10000 targets, got 10001",
@@ -113,20 +123,26 @@ pub async fn ik_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     Client(client): Client,
-    JsonBody(req): JsonBody<IkBatchSpec>,
-) -> ApiResult<Json<IkBatchOutput>> {
+    body: BatchBody<IkBatch>,
+) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
+    let answer = body.answer;
+    let req = body.spec(&state.service, &entry.robot)?;
     let angle_unit = req.angle_unit;
     let answers = state
         .service
         .ik_batch_on_pool(client, entry.clone(), req)
         .await?;
+    if answer != Media::Json {
+        return Ok(binary::ik_answer(&entry.robot, angle_unit, &answers));
+    }
     Ok(Json(IkBatchOutput {
         robot: entry.robot.name().to_string(),
         length_unit: entry.robot.length_unit(),
         angle_unit,
         results: answers.iter().map(IkItem::from).collect(),
-    }))
+    })
+    .into_response())
 }
 
 /// A Cartesian path: from `start` through the waypoints along straight lines

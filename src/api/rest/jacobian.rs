@@ -5,13 +5,16 @@
 use axum::Json;
 use axum::extract::State;
 
+use axum::response::{IntoResponse, Response};
+
 use super::AppState;
+use super::binary::{self, BatchBody, JacobianBatch, Media};
 use super::dto::{JacobianBatchRequest, JacobianRequest};
 use super::extract::{Client, JsonBody, RobotName};
 use super::problem::{ApiError, Problem};
 use crate::api::jacobian::{JacobianBatchOutput, JacobianItem, JacobianOutput};
 use crate::error::Error;
-use crate::model::{JacobianBatchSpec, JacobianSpec};
+use crate::model::JacobianSpec;
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -61,10 +64,23 @@ pub async fn jacobian(
 
 /// Jacobians of many configurations, in request order; one bad configuration
 /// fails the batch, naming it (`configurations[17][2]`).
-#[utoipa::path(post, path = "/v1/robots/{name}/jacobian/batch", tag = "velocity", request_body = JacobianBatchRequest,
-    params(("name" = String, Path, description = "Robot name")),
+///
+/// Also in binary: `application/x-protobuf` (gRPC's `JacobianBatch`
+/// messages) and `application/octet-stream` (packed little-endian float64:
+/// `n × dof` joint values in, `n × (6·dof + 15)` numbers out; options as
+/// query parameters); `Content-Type` says what the body is, `Accept` what
+/// the answer is (default JSON).
+#[utoipa::path(post, path = "/v1/robots/{name}/jacobian/batch", tag = "velocity",
+    request_body(description = binary::BATCH_BODY, content(
+        (JacobianBatchRequest = "application/json"),
+        (binary::Binary = "application/x-protobuf"),
+        (binary::Binary = "application/octet-stream"))),
+    params(("name" = String, Path, description = "Robot name"), binary::PackedJacobianQuery),
     responses(
-        (status = 200, description = "One Jacobian with its measures and pose per configuration, in request order", body = JacobianBatchOutput,
+        (status = 200, description = binary::BATCH_ANSWER, content(
+            (JacobianBatchOutput = "application/json"),
+            (binary::Binary = "application/x-protobuf"),
+            (binary::Binary = "application/octet-stream")),
             example = json!({"robot": "planar_2dof", "length_unit": "m", "results": [{"frame": "tool",
                 "jacobian": [[0.0, 0.0], [0.7, 0.29999999999999993], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [1.0, 1.0]],
                 "manipulability": 0.0, "condition_number": null, "singular": true,
@@ -75,6 +91,7 @@ pub async fn jacobian(
                 "detail": "malformed input: configurations[0][1]: invalid type: string \"x\", expected f64",
                 "errors": [{"field": "configurations[0][1]", "message": "invalid type: string \"x\", expected f64"}]})),
         (status = 404, description = "No robot of that name", body = Problem, content_type = "application/problem+json"),
+        (status = 406, description = "`Accept` names none of the answer formats", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "More configurations than the batch limit, or body over the size limit", body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:kinserve:problem:too-large", "title": "Request too large", "status": 413,
                 "detail": "too large: a batch holds at most 10000 configurations, got 10001",
@@ -89,10 +106,11 @@ pub async fn jacobian_batch(
     State(state): State<AppState>,
     RobotName(name): RobotName,
     Client(client): Client,
-    JsonBody(req): JsonBody<JacobianBatchRequest>,
-) -> ApiResult<Json<JacobianBatchOutput>> {
+    body: BatchBody<JacobianBatch>,
+) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
-    let spec = JacobianBatchSpec::from(req);
+    let answer = body.answer;
+    let spec = body.spec(&state.service, &entry.robot)?;
     check_answer_size(
         spec.configurations.len(),
         entry.robot.dof(),
@@ -103,11 +121,15 @@ pub async fn jacobian_batch(
         .jacobian_batch_on_pool(client, entry.clone(), spec)
         .await?;
     let robot = &entry.robot;
+    if answer != Media::Json {
+        return Ok(binary::jacobian_answer(answer, robot, &answers));
+    }
     Ok(Json(JacobianBatchOutput {
         robot: robot.name().to_string(),
         length_unit: robot.length_unit(),
         results: answers.iter().map(JacobianItem::from).collect(),
-    }))
+    })
+    .into_response())
 }
 
 /// Fewest bytes one Jacobian batch item takes in JSON: `6 × dof` Jacobian

@@ -1,5 +1,6 @@
 //! The REST adapter (axum): routes, middleware, OpenAPI document and docs page.
 
+mod binary;
 pub mod body_budget;
 mod buffered;
 pub mod conn;

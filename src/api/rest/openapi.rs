@@ -112,7 +112,12 @@ pub fn describe(code: &str) -> &'static str {
             "Precondition failed: `If-Match` names another version (or the robot is gone), or `If-None-Match: *` found it; nothing was changed."
         }
         "413" => "Too large: the body or the batch is over its limit.",
-        "415" => "Unsupported media type: send `application/json`.",
+        "406" => {
+            "Not acceptable: `Accept` names none of the route's answer formats (the batch routes answer `application/json`, `application/x-protobuf` and, FK and Jacobian, `application/octet-stream`)."
+        }
+        "415" => {
+            "Unsupported media type: send `application/json` (the batch routes also take `application/x-protobuf` and, FK and Jacobian, `application/octet-stream`)."
+        }
         "426" => "The connection cannot be upgraded to a WebSocket.",
         "422" => {
             "Invalid input: the body reads but breaks a rule (invalid model, wrong joint count, value outside the limits); every broken rule is listed."
@@ -161,6 +166,15 @@ fn problem_example(code: &str) -> Option<Value> {
         "500" => Error::Internal {
             detail: "the handler failed unexpectedly; this is a bug".into(),
         },
+        "406" => {
+            let p = Problem::protocol(
+                axum::http::StatusCode::NOT_ACCEPTABLE,
+                "not-acceptable",
+                "Not acceptable",
+                "Accept 'text/csv' names no format this route answers in: ask for application/json (the default), application/x-protobuf or application/octet-stream".into(),
+            );
+            return serde_json::to_value(p).ok();
+        }
         "426" => {
             let p = Problem::protocol(
                 axum::http::StatusCode::UPGRADE_REQUIRED,
