@@ -730,14 +730,23 @@ pub enum StreamAnswer {
     Ik(IkAnswer),
     /// A Cartesian path (stopped early is an answer, with its stop).
     IkPath(IkPathAnswer),
+    /// FK of many configurations: the poses in request order, as the FK
+    /// batch answers them.
+    FkBatch {
+        /// One tool pose per configuration.
+        poses: Vec<Transform>,
+        /// How the message asked for its poses.
+        pose_format: PoseFormat,
+    },
 }
 
 /// One stream message, the same for the WebSocket and the gRPC stream.
 impl Service {
     /// Answers one stream message for `entry`: FK (with the Jacobian and the
     /// operations on one configuration when asked for, validated once) on
-    /// this task, IK on the compute pool under one of `client`'s permits.
-    /// Counts the poses under `protocol`.
+    /// this task; IK, paths and FK of many configurations on the compute pool
+    /// under one of `client`'s permits (refused at once when none is free,
+    /// as the unary batch is). Counts the poses under `protocol`.
     pub async fn stream_step(
         self: &Arc<Self>,
         entry: Arc<Entry>,
@@ -752,6 +761,14 @@ impl Service {
             StreamOp::IkPath(spec) => Ok(StreamAnswer::IkPath(
                 self.ik_path_on_pool(client, entry, *spec).await?,
             )),
+            StreamOp::FkBatch(spec) => {
+                let (poses, spec) = self.fk_batch_on_pool(client, entry.clone(), spec).await?;
+                entry.count_poses(protocol, poses.len() as u64);
+                Ok(StreamAnswer::FkBatch {
+                    poses,
+                    pose_format: spec.pose_format,
+                })
+            }
             StreamOp::Fk { fk, jacobian, ops } => {
                 let q = entry.robot.check_joints(&fk.joints, &fk.options)?;
                 let (pose, frames) = q.fk_with_frames(fk.frames);

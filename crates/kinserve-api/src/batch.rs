@@ -133,16 +133,26 @@ pub fn fk_batch_to_pb(
     format: PoseFormat,
     poses: &[Transform],
 ) -> pb::ForwardKinematicsBatchResponse {
-    let packed_poses = packed_to_pb(format, poses.iter());
-    let poses = match packed_poses {
-        Some(_) => Vec::new(),
-        None => poses.iter().map(pose_to_pb).collect(),
-    };
+    let (poses, packed_poses) = fk_batch_poses_to_pb(format, poses);
     pb::ForwardKinematicsBatchResponse {
         robot: robot.to_string(),
         length_unit: pb::LengthUnit::from(length_unit) as i32,
         poses,
         packed_poses,
+    }
+}
+
+/// The poses of an FK batch as its two fields: `poses` (Pose messages) for
+/// `full`, else one `packed_poses` (one pre-sized vector, nothing per pose).
+/// [`fk_batch_to_pb`] and the gRPC stream's many-configuration reply both
+/// write them, so their numbers are the same.
+pub fn fk_batch_poses_to_pb(
+    format: PoseFormat,
+    poses: &[Transform],
+) -> (Vec<pb::Pose>, Option<pb::PackedPoses>) {
+    match packed_to_pb(format, poses.iter()) {
+        Some(packed) => (Vec::new(), Some(packed)),
+        None => (poses.iter().map(pose_to_pb).collect(), None),
     }
 }
 

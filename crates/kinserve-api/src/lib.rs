@@ -47,7 +47,7 @@ mod stream;
 mod urdf;
 
 pub use batch::{
-    F64_BYTES, configurations_from_le, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
+    F64_BYTES, configurations_from_le, fk_batch_poses_to_pb, fk_batch_to_pb, jacobian_batch_to_pb, jacobian_stride,
     jacobians_to_le, packed_count, packed_format, poses_to_le,
 };
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
@@ -55,7 +55,7 @@ pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb}
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
-pub use operations::{PbConfigOp, put_stream_answers, stream_ops};
+pub use operations::{PbConfigOp, put_stream_answers, stream_op_flag, stream_ops};
 pub use pose::{packed_to_pb, pose_to_pb};
 pub use robot::{convention_to_pb, length_unit_to_pb, robot_from_pb, robot_to_pb};
 pub use urdf::import_convention_from_pb;

@@ -2,7 +2,7 @@
 //! the wire: [`PbConfigOp`] says, per operation, which messages its gRPC
 //! method takes and answers and which fields carry it on the FK stream; the
 //! table ([`kinserve_model::config_ops!`]) turns those into the stream
-//! message's flags ([`stream_ops`]) and the stream reply's fields
+//! message's flags ([`stream_ops`], [`stream_op_flag`]) and the stream reply's fields
 //! ([`put_stream_answers`]) with no line per operation here. The server's
 //! gRPC methods come from the same table.
 //!
@@ -43,6 +43,18 @@ macro_rules! pb_stream {
             ConfigOps {
                 $( $name: <$op as PbConfigOp>::asked(msg), )*
             }
+        }
+
+        /// The stream flag of the first operation a message asks for
+        /// (`include_<operation>`, as `include_link_transforms`), to name it
+        /// where it is refused.
+        pub fn stream_op_flag(msg: &pb::StreamForwardKinematicsRequest) -> Option<&'static str> {
+            $(
+                if <$op as PbConfigOp>::asked(msg) {
+                    return Some(concat!("include_", stringify!($name)));
+                }
+            )*
+            None
         }
 
         /// Writes the answers into a stream reply.

@@ -1,19 +1,25 @@
 //! A gRPC stream message → the robot it names and the [`StreamOp`] it asks
-//! for (the same operation a WebSocket message converts into). Depends on the
-//! model, [`crate::fk`], [`crate::jacobian`], [`crate::operations`] and
-//! [`crate::pb`].
+//! for (the same operation a WebSocket message converts into): FK of one
+//! configuration (`joints`), of many (`configurations`, answered as the FK
+//! batch), IK or a Cartesian path. Depends on the model, [`crate::fk`],
+//! [`crate::jacobian`], [`crate::operations`] and [`crate::pb`].
 
-use kinserve_model::{FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
+use kinserve_model::{FkBatchSpec, FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
 
-use crate::fk::FkOptionsExt;
+use crate::fk::{FkOptionsExt, configurations};
 use crate::jacobian::frame_from_pb;
 use crate::pb;
 
 impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
     type Error = ModelError;
-    /// FK (with the Jacobian and the operations on one configuration when asked for) or IK; `ik`
-    /// with joints, or an `ik.robot` other than the message's, is refused.
+    /// FK of one configuration (with the Jacobian and the operations on one
+    /// configuration when asked for), FK of many, IK or a path: exactly one
+    /// of `joints`, `configurations`, `ik`, `ik_path`; an `ik.robot` other
+    /// than the message's is refused.
     fn try_from(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
+        if !msg.configurations.is_empty() {
+            return fk_batch(msg);
+        }
         if let Some(path) = msg.ik_path {
             if !msg.joints.is_empty() || msg.ik.is_some() {
                 return Err(ModelError::invalid_field(
@@ -62,4 +68,41 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
             ops,
         })
     }
+}
+
+/// A message with `configurations`: FK of each, as `ForwardKinematicsBatch`
+/// computes it. With `joints`, `ik` or `ik_path` it is refused naming
+/// `configurations`; frames, the Jacobian and the operations on one
+/// configuration are refused naming their field.
+fn fk_batch(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
+    if !msg.joints.is_empty() || msg.ik.is_some() || msg.ik_path.is_some() {
+        return Err(ModelError::invalid_field(
+            "configurations",
+            "give joints (FK), configurations (FK of many), ik or ik_path, one of them",
+        ));
+    }
+    if msg.include_jacobian {
+        return Err(ModelError::invalid_field(
+            "include_jacobian",
+            "the Jacobian is for one configuration: send joints, or use JacobianBatch",
+        ));
+    }
+    if let Some(flag) = crate::operations::stream_op_flag(&msg) {
+        return Err(ModelError::invalid_field(
+            flag,
+            "operations on one configuration need joints, not configurations",
+        ));
+    }
+    let (options, frames, pose_format) = msg.options.read()?;
+    if frames {
+        return Err(ModelError::malformed_field(
+            "options.frames",
+            "FK of many configurations returns tool poses only: send joints for frames",
+        ));
+    }
+    Ok(StreamOp::FkBatch(FkBatchSpec {
+        configurations: configurations(&msg.configurations),
+        options,
+        pose_format,
+    }))
 }

@@ -165,4 +165,7 @@ pub enum StreamOp {
     Ik(Box<IkSpec>),
     /// A Cartesian path.
     IkPath(Box<IkPathSpec>),
+    /// FK of many configurations in one message (no frames, no Jacobian, no
+    /// operations on one configuration), answered as the FK batch is.
+    FkBatch(FkBatchSpec),
 }

@@ -267,17 +267,13 @@ impl KinematicsService for GrpcService {
             .await?;
         entry.count_poses(Protocol::Grpc, poses.len() as u64);
         let _encode = crate::trace_span!("encode").entered();
-        let packed_poses = packed_to_pb(spec.pose_format, poses.iter());
-        let poses = match packed_poses {
-            Some(_) => Vec::new(),
-            None => poses.iter().map(pose_to_pb).collect(),
-        };
-        Ok(Response::new(pb::ForwardKinematicsBatchResponse {
-            robot: entry.robot.name().to_string(),
-            length_unit: pb::LengthUnit::from(entry.robot.length_unit()) as i32,
-            poses,
-            packed_poses,
-        }))
+        // The builder the stream's many-configuration reply shares.
+        Ok(Response::new(kinserve_api::fk_batch_to_pb(
+            entry.robot.name(),
+            entry.robot.length_unit(),
+            spec.pose_format,
+            &poses,
+        )))
     }
 
     type StreamForwardKinematicsStream = FkStream;

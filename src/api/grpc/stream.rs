@@ -22,7 +22,7 @@ use kinserve_api::{packed_to_pb, pose_to_pb};
 
 impl GrpcService {
     /// The response to one stream message: FK (with the Jacobian and link
-    /// transforms when asked for) or IK. `Err` only for a panic (the stream
+    /// transforms when asked for), FK of many configurations, IK or a path. `Err` only for a panic (the stream
     /// then ends INTERNAL).
     async fn stream_reply(
         &self,
@@ -56,6 +56,11 @@ impl GrpcService {
         msg: pb::StreamForwardKinematicsRequest,
         client: ClientId,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+        // Many configurations: refused over the batch limit before they are
+        // copied, as ForwardKinematicsBatch refuses them.
+        if !msg.configurations.is_empty() {
+            self.service.check_batch_size(msg.configurations.len())?;
+        }
         let entry = self.service.robot_at(&msg.robot, "robot")?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
@@ -73,7 +78,8 @@ impl GrpcService {
 }
 
 /// A stream answer as its message (Pose messages for `full`, PackedPoses for
-/// a compact `pose_format`; a path as InverseKinematicsPath answers it).
+/// a compact `pose_format`; a path as InverseKinematicsPath answers it; many
+/// configurations as ForwardKinematicsBatch answers them, with the same builder).
 fn stream_response(
     answer: StreamAnswer,
     unit: i32,
@@ -81,6 +87,16 @@ fn stream_response(
 ) -> pb::StreamForwardKinematicsResponse {
     use pb::stream_forward_kinematics_response::Result as Answer;
     match answer {
+        StreamAnswer::FkBatch { poses, pose_format } => {
+            let _encode = crate::trace_span!("encode").entered();
+            let (poses, packed_poses) = kinserve_api::fk_batch_poses_to_pb(pose_format, &poses);
+            pb::StreamForwardKinematicsResponse {
+                length_unit: unit,
+                poses,
+                packed_poses,
+                ..Default::default()
+            }
+        }
         StreamAnswer::IkPath(a) => pb::StreamForwardKinematicsResponse {
             length_unit: unit,
             ik_path: Some(kinserve_api::ik_path_to_pb(&a, robot, unit, angle_unit)),

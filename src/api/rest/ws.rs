@@ -313,6 +313,14 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 /// Jacobian and the operations on one configuration when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
+        // No WebSocket message asks for many configurations (only the gRPC
+        // stream's `configurations` does): never reached, answered as a bug.
+        StreamAnswer::FkBatch { .. } => {
+            let e = crate::error::Error::Internal {
+                detail: "FK of many configurations is not a WebSocket operation".into(),
+            };
+            return error_reply(id, &e);
+        }
         StreamAnswer::IkPath(a) => WsReply {
             length_unit: Some(length_unit),
             ik_path: Some(WsIkPath {

@@ -3,6 +3,7 @@
 //! Every RPC of `kinematics.v1.KinematicsService` with its success path and every
 //! status code the issue names, health, reflection (v1 and v1alpha), the
 //! bidirectional stream (invalid message in the middle, slow reader, cancel,
+//! many configurations in one message,
 //! shutdown), the registry shared with REST, and velocity / inverse kinematics
 //! (the same answers as REST and the WebSocket).
 //!
@@ -15,4 +16,5 @@ mod ik_objectives;
 mod ik_solutions;
 mod registry;
 mod stream;
+mod stream_batch;
 mod velocity;
