@@ -3,8 +3,7 @@
 //! Every RPC of `kinematics.v1.KinematicsService` with its success path and every
 //! status code the issue names, health, reflection (v1 and v1alpha), the
 //! bidirectional stream (invalid message in the middle, slow reader, cancel,
-//! many configurations in one message,
-//! shutdown), the registry shared with REST, and velocity / inverse kinematics
+//! shutdown, many configurations in one message), the registry shared with REST, and velocity / inverse kinematics
 //! (the same answers as REST and the WebSocket).
 //!
 //! Split by area; the shared helpers are in `crate::helpers`.

@@ -126,7 +126,10 @@ async fn a_multi_configuration_reply_equals_the_unary_batch_byte_for_byte() {
         let what = format!("message {i} ({format:?})");
         assert_eq!(reply.id, i as u64 + 100, "{what}");
         assert!(reply.result.is_none(), "{what}: no single pose");
-        assert!(reply.frames.is_empty() && reply.packed_frames.is_none(), "{what}");
+        assert!(
+            reply.frames.is_empty() && reply.packed_frames.is_none(),
+            "{what}"
+        );
         if k == 0 {
             assert_eq!(reply.poses.len(), n, "{what}");
             assert!(reply.packed_poses.is_none(), "{what}");
@@ -159,7 +162,12 @@ async fn single_and_multi_messages_interleave_in_order() {
     let position = format_options(pb::PoseFormat::Position, false);
     let msgs = vec![
         stream_request(1, "panda", &q[0], None),
-        multi(2, "panda", &[q[0].clone(), q[1].clone(), q[2].clone()], None),
+        multi(
+            2,
+            "panda",
+            &[q[0].clone(), q[1].clone(), q[2].clone()],
+            None,
+        ),
         stream_request(3, "panda", &q[1], None),
         multi(4, "panda", &q[3..4], matrix),
         stream_request(5, "panda", &q[3], matrix),
@@ -215,7 +223,7 @@ async fn refusals_and_bad_values_are_error_replies_and_the_stream_goes_on() {
     let msgs = vec![
         with(0, &|m| m.joints = vec![0.0; 6]),
         with(1, &|m| m.ik = Some(Box::default())),
-        with(2, &|m| m.ik_path = Some(Box::default())),
+        with(2, &|m| m.ik_path = Some(Default::default())),
         with(3, &|m| m.include_jacobian = true),
         with(4, &|m| m.include_link_transforms = true),
         with(5, &|m| {
@@ -228,7 +236,7 @@ async fn refusals_and_bad_values_are_error_replies_and_the_stream_goes_on() {
         puma(8, &[ok.clone(), vec![0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]]),
         puma(9, &vec![ok.clone(); 5]),
         puma(10, &vec![ok.clone(); 4]),
-        multi(11, "no_such_robot", &[ok.clone()], None),
+        multi(11, "no_such_robot", std::slice::from_ref(&ok), None),
         stream_request(12, "puma560", &ok, None),
     ];
     let replies = exchange(&mut c, &msgs).await;
