@@ -29,6 +29,9 @@ pub trait PbConfigOp: ConfigOp {
     fn spec(r: Self::Request) -> Result<ConfigSpec>;
     /// The unary response for `robot`'s `answer`.
     fn response(robot: String, length_unit: LengthUnit, answer: &Self::Answer) -> Self::Response;
+    /// The stream message's flag asking for the operation (the field
+    /// [`PbConfigOp::asked`] reads), as refusals name it.
+    const STREAM_FLAG: &'static str;
     /// Whether a stream message asks for the operation.
     fn asked(msg: &pb::StreamForwardKinematicsRequest) -> bool;
     /// Writes the answer into a stream reply.
@@ -46,12 +49,11 @@ macro_rules! pb_stream {
         }
 
         /// The stream flag of the first operation a message asks for
-        /// (`include_<operation>`, as `include_link_transforms`), to name it
-        /// where it is refused.
+        /// ([`PbConfigOp::STREAM_FLAG`]), to name it where it is refused.
         pub fn stream_op_flag(msg: &pb::StreamForwardKinematicsRequest) -> Option<&'static str> {
             $(
                 if <$op as PbConfigOp>::asked(msg) {
-                    return Some(concat!("include_", stringify!($name)));
+                    return Some(<$op as PbConfigOp>::STREAM_FLAG);
                 }
             )*
             None
@@ -88,6 +90,7 @@ impl From<&LinkTransform> for pb::LinkTransform {
 impl PbConfigOp for LinkTransforms {
     type Request = pb::LinkTransformsRequest;
     type Response = pb::LinkTransformsResponse;
+    const STREAM_FLAG: &'static str = "include_link_transforms";
     fn robot(r: &Self::Request) -> &str {
         &r.robot
     }

@@ -47,8 +47,6 @@ macro_rules! config_ops {
 /// header): its answer and how it is computed. The validation (joint count,
 /// units, limits) is [`crate::Robot::check_joints`], shared by all.
 pub trait ConfigOp {
-    /// The operation's name on every front door (the table's `name`).
-    const NAME: &'static str;
     /// What it answers.
     type Answer: Clone + std::fmt::Debug + PartialEq + Serialize + Send + 'static;
     /// The answer at `q`.
@@ -90,11 +88,6 @@ macro_rules! model_sets {
         }
 
         impl ConfigOps {
-            /// Whether any is asked for.
-            pub fn any(&self) -> bool {
-                false $(|| self.$name)*
-            }
-
             /// The answers at `q` of those asked for.
             pub fn compute(&self, q: &JointVector<'_>) -> ConfigAnswers {
                 ConfigAnswers {
@@ -154,7 +147,6 @@ impl Serialize for LinkTransform {
 pub struct LinkTransforms;
 
 impl ConfigOp for LinkTransforms {
-    const NAME: &'static str = "link_transforms";
     type Answer = Vec<LinkTransform>;
 
     fn compute(q: &JointVector<'_>) -> Vec<LinkTransform> {

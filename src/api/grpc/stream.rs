@@ -21,9 +21,10 @@ use crate::telemetry::Protocol;
 use kinserve_api::{packed_to_pb, pose_to_pb};
 
 impl GrpcService {
-    /// The response to one stream message: FK (with the Jacobian and link
-    /// transforms when asked for), FK of many configurations, IK or a path. `Err` only for a panic (the stream
-    /// then ends INTERNAL).
+    /// The response to one stream message: FK (with the Jacobian and the
+    /// operations on one configuration when asked for), FK of many
+    /// configurations, IK or a path. `Err` only for a panic (the stream then
+    /// ends INTERNAL).
     async fn stream_reply(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
