@@ -49,8 +49,9 @@ pinocchio_part() {
   pin_version=$(python3 -c 'import pinocchio; print(pinocchio.__version__)')
   [ -f "$prefix/include/pinocchio/multibody.hpp" ] || { echo "no Pinocchio headers under $prefix" >&2; exit 1; }
   cargo build --release --locked -p kinserve-kinematics --example peer_fk >&2
-  local peer_fk=./target/release/examples/peer_fk pin_bin=./target/peers/pinocchio_fk
-  mkdir -p target/peers
+  local target=${CARGO_TARGET_DIR:-./target}
+  local peer_fk=$target/release/examples/peer_fk pin_bin=$target/peers/pinocchio_fk
+  mkdir -p "$target/peers"
   # Pinocchio's own CMake target sets these definitions (its joint variant has
   # more alternatives than Boost.MPL's preprocessed lists allow).
   local defs="-DNDEBUG -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30 -DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS -DBOOST_FUSION_INVOKE_MAX_ARITY=12"
@@ -110,7 +111,7 @@ fastapi_part() {
   local bin_dir=${BIN_DIR:-}
   if [ -z "$bin_dir" ]; then
     cargo build --release --locked --bin kinserve >&2
-    bin_dir=./target/release
+    bin_dir=${CARGO_TARGET_DIR:-./target}/release
   fi
   mkdir -p "$work/data"
   KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=127.0.0.1:${GRPC_PORT:-18492} KINSERVE_DATA_DIR="$work/data" \

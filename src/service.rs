@@ -754,15 +754,19 @@ impl Service {
         protocol: crate::telemetry::Protocol,
         client: ClientId,
     ) -> Result<StreamAnswer> {
+        // The compute-pool futures are boxed: unboxed, every FK message's
+        // future would be as large as the largest of them and be copied
+        // around per message (a fifth of the stream's server time).
         match op {
             StreamOp::Ik(spec) => Ok(StreamAnswer::Ik(
-                self.ik_on_pool(client, entry, *spec).await?,
+                Box::pin(self.ik_on_pool(client, entry, *spec)).await?,
             )),
             StreamOp::IkPath(spec) => Ok(StreamAnswer::IkPath(
-                self.ik_path_on_pool(client, entry, *spec).await?,
+                Box::pin(self.ik_path_on_pool(client, entry, *spec)).await?,
             )),
             StreamOp::FkBatch(spec) => {
-                let (poses, spec) = self.fk_batch_on_pool(client, entry.clone(), spec).await?;
+                let (poses, spec) =
+                    Box::pin(self.fk_batch_on_pool(client, entry.clone(), spec)).await?;
                 entry.count_poses(protocol, poses.len() as u64);
                 Ok(StreamAnswer::FkBatch {
                     poses,
