@@ -378,3 +378,105 @@ async fn a_clients_close_is_answered_with_its_code() {
     .expect("the server answers the close");
     assert_eq!(reply.map(|f| f.code), Some(CloseCode::Normal));
 }
+
+/// A message with `configurations` (FK of many, as the gRPC stream's
+/// `configurations`) is answered in the field `POST …/fk/batch` uses, with
+/// the batch route's numbers; it is refused beside `joints`, `ik`, the
+/// Jacobian, frames or an operation on one configuration (naming the field),
+/// over the batch limit (413), and the stream goes on after each.
+#[tokio::test]
+async fn many_configurations_in_one_message_equal_the_rest_batch() {
+    let app = spawn_app_with(|c| c.max_batch = 4).await;
+    let mut ws = open(&app, "puma560").await;
+    // Degrees, a zero configuration and a −0.0 among them.
+    let qs = json!([
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [10.0, -40.0, 60.0, -0.0, 30.0, 120.0],
+        [-70.0, 20.0, -45.0, 80.0, -60.0, -150.0]
+    ]);
+    for (i, format) in ["full", "matrix", "position"].iter().enumerate() {
+        let msg =
+            json!({"id": i, "configurations": qs, "angle_unit": "deg", "pose_format": format});
+        send(&mut ws, &msg.to_string()).await;
+        let reply = next_reply(&mut ws).await;
+        let rest: Value = app
+            .post(
+                "/v1/robots/puma560/fk/batch",
+                &json!({"configurations": qs, "angle_unit": "deg", "pose_format": format}),
+            )
+            .await
+            .json()
+            .await
+            .unwrap();
+        let field = ["poses", "matrices", "positions"][i];
+        assert_eq!(reply["id"], i);
+        assert_eq!(reply["length_unit"], "m");
+        // Same numbers, bit for bit (both print f64 the same way).
+        assert_eq!(reply[field], rest[field], "{format}: {reply}");
+        assert_eq!(reply[field].as_array().map(Vec::len), Some(3));
+        for other in [
+            "pose",
+            "matrix",
+            "position",
+            "poses",
+            "matrices",
+            "positions",
+        ] {
+            assert!(
+                other == field || reply.get(other).is_none(),
+                "{other} in {reply}"
+            );
+        }
+    }
+    let refused = [
+        (
+            json!({"configurations": qs, "joints": [0, 0, 0, 0, 0, 0]}),
+            422,
+            "configurations",
+        ),
+        (
+            json!({"configurations": qs, "jacobian": true}),
+            422,
+            "jacobian",
+        ),
+        (
+            json!({"configurations": qs, "link_transforms": true}),
+            422,
+            "link_transforms",
+        ),
+        (json!({"configurations": qs, "frames": true}), 400, "frames"),
+        (
+            json!({"configurations": [[0, 0, 0, 0, 0, 0], [0, 0, 9, 0, 0, 0]]}),
+            422,
+            "configurations[1][2]",
+        ),
+    ];
+    for (k, (msg, status, field)) in refused.iter().enumerate() {
+        let mut msg = msg.clone();
+        msg["id"] = json!(format!("bad{k}"));
+        send(&mut ws, &msg.to_string()).await;
+        let p = error_of(&next_reply(&mut ws).await, &msg["id"], *status);
+        assert_eq!(fields(&p), [*field], "{msg}: {p}");
+    }
+    // Over the limit (4): refused, 4 answered.
+    let five = json!({"id": "five", "configurations": vec![[0.0; 6]; 5]});
+    send(&mut ws, &five.to_string()).await;
+    let p = error_of(&next_reply(&mut ws).await, &json!("five"), 413);
+    assert!(p["detail"].as_str().unwrap().contains("at most 4"), "{p}");
+    let four =
+        json!({"id": "four", "configurations": vec![[0.0; 6]; 4], "pose_format": "position"});
+    send(&mut ws, &four.to_string()).await;
+    assert_eq!(
+        next_reply(&mut ws).await["positions"]
+            .as_array()
+            .map(Vec::len),
+        Some(4)
+    );
+    // A single-configuration message after them.
+    send(
+        &mut ws,
+        &json!({"id": "one", "joints": [0, 0, 0, 0, 0, 0]}).to_string(),
+    )
+    .await;
+    assert!(next_reply(&mut ws).await["pose"].is_object());
+}

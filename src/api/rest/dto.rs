@@ -367,6 +367,13 @@ pub struct WsRequest {
     /// A Cartesian path instead of FK (like the body of `POST /v1/robots/{name}/ik/path`).
     #[serde(default)]
     pub ik_path: Option<IkPathSpec>,
+    /// Many configurations instead of `joints`: FK of each, as
+    /// `POST /v1/robots/{name}/fk/batch` computes it (at most the batch limit;
+    /// no frames, Jacobian or operations on one configuration). The reply
+    /// carries `poses`, `matrices` or `positions` as that route answers.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Vec<f64>>>)]
+    pub configurations: Option<Configurations>,
     $(
         $(#[$doc])*
         ///
@@ -397,6 +404,40 @@ impl TryFrom<WsRequest> for StreamOp {
     /// naming `joints`.
     fn try_from(r: WsRequest) -> Result<StreamOp, Self::Error> {
         use crate::model::ModelError;
+        if let Some(configurations) = r.configurations {
+            // Refused as the gRPC stream refuses them, naming the field.
+            if r.joints.is_some() || r.ik.is_some() || r.ik_path.is_some() {
+                return Err(ModelError::invalid_field(
+                    "configurations",
+                    "give joints (FK), configurations (FK of many), ik or ik_path, one of them",
+                ));
+            }
+            if r.jacobian {
+                return Err(ModelError::invalid_field(
+                    "jacobian",
+                    "the Jacobian is for one configuration: send joints, or use POST …/jacobian/batch",
+                ));
+            }
+            $(
+            if r.$name {
+                return Err(ModelError::invalid_field(
+                    stringify!($name),
+                    "operations on one configuration need joints, not configurations",
+                ));
+            }
+            )*
+            if r.frames {
+                return Err(ModelError::malformed_field(
+                    "frames",
+                    "FK of many configurations returns tool poses only: send joints for frames",
+                ));
+            }
+            return Ok(StreamOp::FkBatch(FkBatchSpec {
+                configurations,
+                options: options(r.angle_unit, r.check_limits),
+                pose_format: r.pose_format,
+            }));
+        }
         if let Some(path) = r.ik_path {
             if r.ik.is_some() || r.joints.is_some() {
                 return Err(ModelError::invalid_field(
@@ -490,6 +531,21 @@ pub struct WsReply<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = PosePositions)]
     pub frame_positions: Option<Many<'a, AsPosition>>,
+    /// With `configurations`: one full pose object per configuration, in
+    /// order, when `pose_format` is `full` (as `POST …/fk/batch` answers).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Vec<Pose>)]
+    pub poses: Option<Many<'a, AsPose>>,
+    /// With `configurations`: one pose per configuration as 12 numbers, when
+    /// `pose_format` is `matrix`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PoseMatrices)]
+    pub matrices: Option<Many<'a, AsMatrix>>,
+    /// With `configurations`: one position `[x, y, z]` per configuration,
+    /// when `pose_format` is `position`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = PosePositions)]
+    pub positions: Option<Many<'a, AsPosition>>,
     /// With `"jacobian": true`: the Jacobian and its measures (as `POST …/jacobian` answers them).
     #[serde(flatten)]
     pub jacobian: Option<WsJacobian>,
@@ -520,6 +576,9 @@ impl<'a> WsReply<'a> {
             frames: None,
             frame_matrices: None,
             frame_positions: None,
+            poses: None,
+            matrices: None,
+            positions: None,
             jacobian: None,
             ik: None,
             ik_path: None,

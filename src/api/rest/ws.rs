@@ -17,7 +17,7 @@ use super::dto::{WsIdOnly, WsIk, WsIkPath, WsJacobian, WsReply, WsRequest};
 use super::extract::{Client, RobotName, parse_object};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
-use crate::api::pose_format::PoseFormat;
+use crate::api::pose_format::{self, PoseFormat};
 use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{LengthUnit, StreamOp};
@@ -287,6 +287,11 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
         }
     };
     let id = std::mem::take(&mut req.id);
+    if let Some(c) = &req.configurations
+        && let Err(e) = state.service.check_batch_size(c.len())
+    {
+        return error_reply(&id, &e);
+    }
     let op = match StreamOp::try_from(req) {
         Ok(op) => op,
         Err(e) => return error_reply(&id, &e.into()),
@@ -313,13 +318,16 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 /// Jacobian and the operations on one configuration when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let reply = match answer {
-        // No WebSocket message asks for many configurations (only the gRPC
-        // stream's `configurations` does): never reached, answered as a bug.
-        StreamAnswer::FkBatch { .. } => {
-            let e = crate::error::Error::Internal {
-                detail: "FK of many configurations is not a WebSocket operation".into(),
-            };
-            return error_reply(id, &e);
+        // Many configurations: in the field `POST …/fk/batch` uses.
+        StreamAnswer::FkBatch { poses, pose_format } => {
+            let p = pose_format::many(*pose_format, Some(poses));
+            WsReply {
+                length_unit: Some(length_unit),
+                poses: p.full,
+                matrices: p.matrix,
+                positions: p.position,
+                ..WsReply::empty(id)
+            }
         }
         StreamAnswer::IkPath(a) => WsReply {
             length_unit: Some(length_unit),
