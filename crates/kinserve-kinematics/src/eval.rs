@@ -101,6 +101,16 @@ pub(crate) trait Col4: Lane {
         // SAFETY: by this function's contract.
         unsafe { out.write(t) };
     }
+    /// The transform with columns `cols`, by value.
+    #[inline(always)]
+    fn to_transform(cols: &[Self; 4]) -> Transform {
+        let mut t = MaybeUninit::<Transform>::uninit();
+        // SAFETY: `t` is valid for writes and fully written by `store_transform`.
+        unsafe {
+            Self::store_transform(cols, t.as_mut_ptr());
+            t.assume_init()
+        }
+    }
 }
 
 impl<const FMA: bool> Col4 for Arr<FMA, 4> {
@@ -130,6 +140,10 @@ impl Col4 for Ymm {
         // SAFETY: forwarded from this function's own contract.
         unsafe { Ymm::store_transform(cols, out) }
     }
+    #[inline(always)]
+    fn to_transform(cols: &[Self; 4]) -> Transform {
+        Ymm::transform(cols)
+    }
 }
 
 /// # Safety
@@ -149,12 +163,7 @@ unsafe fn load_cols<V: Col4>(c: &Cols) -> [V; 4] {
 
 #[inline(always)]
 fn transform_of<V: Col4>(m: &[V; 4]) -> Transform {
-    let mut t = MaybeUninit::<Transform>::uninit();
-    // SAFETY: `t` is valid for writes and fully written by `store_transform`.
-    unsafe {
-        V::store_transform(m, t.as_mut_ptr());
-        t.assume_init()
-    }
+    V::to_transform(m)
 }
 
 /// World pose of the tool tip (see [`crate::Chain::forward`]).
