@@ -33,7 +33,7 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
                     "must be empty or the message's robot",
                 ));
             }
-            return Ok(StreamOp::IkPath(Box::new(IkPathSpec::try_from(path)?)));
+            return Ok(StreamOp::IkPath(Box::new(IkPathSpec::try_from(*path)?)));
         }
         if let Some(ik) = msg.ik {
             if !msg.joints.is_empty() {

@@ -100,7 +100,9 @@ fn stream_response(
         }
         StreamAnswer::IkPath(a) => pb::StreamForwardKinematicsResponse {
             length_unit: unit,
-            ik_path: Some(kinserve_api::ik_path_to_pb(&a, robot, unit, angle_unit)),
+            ik_path: Some(Box::new(kinserve_api::ik_path_to_pb(
+                &a, robot, unit, angle_unit,
+            ))),
             ..Default::default()
         },
         StreamAnswer::Ik(a) => {

@@ -388,10 +388,10 @@ async fn a_cartesian_path_is_the_same_on_rest_websocket_and_grpc() {
     // On the gRPC stream too.
     let (tx, mut rx) = open_stream(&mut c, 4).await;
     let mut msg = stream_request(5, "puma560", &[], None);
-    msg.ik_path = Some(pb::InverseKinematicsPathRequest {
+    msg.ik_path = Some(Box::new(pb::InverseKinematicsPathRequest {
         robot: String::new(),
         ..req.clone()
-    });
+    }));
     tx.send(msg).await.unwrap();
     let s = rx.message().await.unwrap().unwrap();
     assert_eq!(s.id, 5);
