@@ -171,6 +171,17 @@ impl Robot {
         lens: &[u32],
         opts: &FkOptions,
     ) -> Result<JointBatch<'a>> {
+        let dof = self.dof();
+        let whole = values.len() == dof * lens.len() && lens.iter().all(|&l| l as usize == dof);
+        if whole && self.batch_within_bounds(values, opts) {
+            return Ok(JointBatch::new(
+                self,
+                values,
+                lens.len(),
+                opts.angle_unit.to_rad(),
+            ));
+        }
+        // Something is wrong: the per-value check finds it and says what.
         let mut offset = 0usize;
         for (i, &len) in lens.iter().enumerate() {
             let len = len as usize;
@@ -184,6 +195,46 @@ impl Robot {
             lens.len(),
             opts.angle_unit.to_rad(),
         ))
+    }
+
+    /// Whether every value of `values` (configurations of `dof` values back
+    /// to back) passes [`Robot::check_value`], in one branch-free pass: per
+    /// joint the interval `x · scale` must lie in (scale 1 for a prismatic
+    /// joint, the request's to-rad factor for a revolute one; the magnitude
+    /// bound and, when checked, the limits). It accepts exactly what the
+    /// per-value check accepts: the same products are compared with the same
+    /// bounds, and NaN or ±∞ fall outside every finite interval.
+    pub(crate) fn batch_within_bounds(&self, values: &[f64], opts: &FkOptions) -> bool {
+        let dof = self.dof();
+        if dof == 0 || values.len() % dof != 0 {
+            return values.is_empty();
+        }
+        let to_rad = opts.angle_unit.to_rad();
+        let bounds: Vec<[f64; 3]> = self
+            .joints()
+            .iter()
+            .map(|j| {
+                let (scale, max) = match j.kind {
+                    JointKind::Revolute => (to_rad, MAX_REVOLUTE_RAD),
+                    JointKind::Prismatic => (1.0, MAX_MAGNITUDE),
+                    // Not a movable joint; checked as finite (and limits) only.
+                    JointKind::Fixed => (1.0, f64::MAX),
+                };
+                let (lo, hi) = j
+                    .limits
+                    .filter(|_| opts.check_limits)
+                    .unwrap_or((-max, max));
+                [scale, lo.max(-max), hi.min(max)]
+            })
+            .collect();
+        let mut ok = true;
+        for q in values.chunks_exact(dof) {
+            for (x, [scale, lo, hi]) in q.iter().zip(&bounds) {
+                let y = x * scale;
+                ok &= (y >= *lo) & (y <= *hi);
+            }
+        }
+        ok
     }
 
     /// Checked FK: validates `q` (see [`Robot::check_joints`]) and returns the tool pose.
@@ -309,5 +360,71 @@ impl<'a> JointBatch<'a> {
         let mut out = vec![Transform::IDENTITY; self.count];
         self.fk_into(&mut out);
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ModelLimits;
+
+    /// The one-pass batch check accepts exactly the values the per-value
+    /// check accepts: every value at, just inside and just outside each
+    /// bound, non-finite ones, in both angle units, limits checked or not.
+    #[test]
+    fn the_batch_pass_agrees_with_the_per_value_check() {
+        let robot = Robot::from_json(
+            br#"{"name": "two", "convention": "standard", "links": [
+            {"joint": "revolute", "a": 0.4, "alpha": 0, "d": 0, "theta": 0, "limits": [-1.5, 2.5]},
+            {"joint": "prismatic", "a": 0, "alpha": 0, "d": 0.1, "theta": 0, "limits": [0, 0.2]},
+            {"joint": "revolute", "a": 0.1, "alpha": 0, "d": 0, "theta": 0}
+        ]}"#,
+            &ModelLimits::default(),
+        )
+        .unwrap();
+        let deg = 180.0 / std::f64::consts::PI;
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            1e300,
+            -1e300,
+        ];
+        for b in [
+            -1.5,
+            2.5,
+            0.0,
+            0.2,
+            MAX_REVOLUTE_RAD,
+            -MAX_REVOLUTE_RAD,
+            MAX_MAGNITUDE,
+        ] {
+            for v in [b, b * deg] {
+                xs.extend([v, v.next_up(), v.next_down()]);
+            }
+        }
+        let mut agreed = 0;
+        for unit in [AngleUnit::Rad, AngleUnit::Deg] {
+            for check_limits in [true, false] {
+                let opts = FkOptions::new(Some(unit), Some(check_limits));
+                for (j, joint) in robot.joints().iter().enumerate() {
+                    for &x in &xs {
+                        let mut q = [0.0, 0.1, 0.0];
+                        q[j] = x;
+                        let slow = robot.check_value(x, joint, &opts).is_none();
+                        assert_eq!(
+                            robot.batch_within_bounds(&q, &opts),
+                            slow,
+                            "joint {j} x {x:e} {unit:?} {check_limits}"
+                        );
+                        agreed += usize::from(slow);
+                    }
+                }
+            }
+        }
+        // Both verdicts occur.
+        assert!(agreed > 0 && agreed < 4 * 3 * xs.len());
     }
 }
