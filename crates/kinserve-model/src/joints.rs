@@ -206,7 +206,7 @@ impl Robot {
     /// bounds, and NaN or ±∞ fall outside every finite interval.
     pub(crate) fn batch_within_bounds(&self, values: &[f64], opts: &FkOptions) -> bool {
         let dof = self.dof();
-        if dof == 0 || values.len() % dof != 0 {
+        if dof == 0 || !values.len().is_multiple_of(dof) {
             return values.is_empty();
         }
         let to_rad = opts.angle_unit.to_rad();
