@@ -26,6 +26,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     tonic_prost_build::configure()
         .file_descriptor_set_path(out.join("kinematics_descriptor.bin"))
         .extern_path(".google.rpc", "::tonic_types")
+        .codec_path("crate::codec::ReservingCodec")
         // Rarely set, large submessages of the stream messages are boxed, so
         // that every FK reply moved through the stream's queue is small
         // (696 → ~200 bytes; the moves were ~15 % of a stream's server time).

@@ -36,6 +36,7 @@
 //! ```
 
 mod batch;
+pub mod codec;
 mod duration;
 mod fk;
 mod ik;
