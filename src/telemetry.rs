@@ -66,7 +66,7 @@ pub fn metrics_handle() -> PrometheusHandle {
 }
 
 /// How often the recorder's pending histogram samples are folded into their
-/// buckets (see [`spawn_upkeep`]).
+/// buckets by the thread [`metrics_handle`] starts.
 pub const METRICS_UPKEEP_PERIOD: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Upkeep passes run since start (read by the tests).
