@@ -13,7 +13,7 @@ use std::marker::PhantomData;
 use prost::Message;
 use tonic::Status;
 use tonic::codec::{BufferSettings, Codec, EncodeBuf, Encoder};
-use tonic_prost::ProstDecoder;
+use tonic_prost::{ProstDecoder, ProstEncoder};
 
 /// prost's codec with exact-size encoding (see the module documentation).
 #[derive(Debug, Clone)]
@@ -36,7 +36,7 @@ where
     type Decoder = ProstDecoder<U>;
 
     fn encoder(&mut self) -> Self::Encoder {
-        ReservingEncoder(PhantomData)
+        ReservingEncoder(ProstEncoder::new(BufferSettings::default()))
     }
 
     fn decoder(&mut self) -> Self::Decoder {
@@ -44,9 +44,9 @@ where
     }
 }
 
-/// Encodes a message into a buffer first reserved at its encoded length.
+/// prost's own encoder, after reserving the message's encoded length.
 #[derive(Debug, Clone)]
-pub struct ReservingEncoder<T>(PhantomData<T>);
+pub struct ReservingEncoder<T>(ProstEncoder<T>);
 
 impl<T: Message> Encoder for ReservingEncoder<T> {
     type Item = T;
@@ -54,12 +54,10 @@ impl<T: Message> Encoder for ReservingEncoder<T> {
 
     fn encode(&mut self, item: T, buf: &mut EncodeBuf<'_>) -> Result<(), Status> {
         buf.reserve(item.encoded_len());
-        // A BytesMut grows as needed, so prost's only error (no room) cannot happen.
-        item.encode(buf)
-            .map_err(|e| Status::internal(format!("encoding the answer: {e}")))
+        self.0.encode(item, buf)
     }
 
     fn buffer_settings(&self) -> BufferSettings {
-        BufferSettings::default()
+        self.0.buffer_settings()
     }
 }
