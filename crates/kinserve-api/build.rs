@@ -27,6 +27,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .file_descriptor_set_path(out.join("kinematics_descriptor.bin"))
         .extern_path(".google.rpc", "::tonic_types")
         .codec_path("crate::codec::ReservingCodec")
+        // The messages of a batch's numbers, hand-written to read and write
+        // their packed doubles in bulk (see `src/wire.rs`).
+        .extern_path(
+            ".kinematics.v1.JointConfiguration",
+            "crate::wire::JointConfiguration",
+        )
+        .extern_path(".kinematics.v1.PackedPoses", "crate::wire::PackedPoses")
         // Rarely set, large submessages of the stream messages are boxed, so
         // that every FK reply moved through the stream's queue is small
         // (696 → ~200 bytes; the moves were ~15 % of a stream's server time).

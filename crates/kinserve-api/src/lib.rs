@@ -46,6 +46,7 @@ mod pose;
 mod robot;
 mod stream;
 mod urdf;
+mod wire;
 
 pub use batch::{
     F64_BYTES, configurations_from_le, fk_batch_poses_to_pb, fk_batch_to_pb, jacobian_batch_to_pb,
@@ -65,6 +66,7 @@ pub use urdf::import_convention_from_pb;
 #[allow(missing_docs, clippy::all)]
 pub mod pb {
     tonic::include_proto!("kinematics.v1");
+    pub use crate::wire::{JointConfiguration, PackedPoses};
     /// Encoded file descriptor set of `kinematics.v1` and `google.rpc` (served
     /// by reflection, so tools such as grpcurl decode the error details).
     pub const FILE_DESCRIPTOR_SET: &[u8] =

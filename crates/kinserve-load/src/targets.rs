@@ -146,7 +146,7 @@ async fn rest_packed(
     http: &reqwest::Client,
     args: &super::LoadArgs,
     q: &[f64],
-) -> Result<Vec<Vec<f64>>, String> {
+) -> Result<Poses, String> {
     let format = args.pose_format.json_name().unwrap_or("full");
     let url = format!(
         "http://{}/v1/robots/{}/fk/batch?pose_format={format}",
@@ -175,33 +175,52 @@ async fn rest_packed(
     } else {
         12
     };
-    let full = args.pose_format == PoseFormat::Full;
-    Ok(values
-        .chunks(stride)
-        .map(|p| {
-            let mut m = p.to_vec();
-            if full {
-                m.extend_from_slice(&[0.0, 0.0, 0.0, 1.0]);
-            }
-            m
-        })
-        .collect())
+    if args.pose_format != PoseFormat::Full {
+        return Ok(Poses::Packed { values, stride });
+    }
+    Ok(Poses::Each(
+        values
+            .chunks(stride)
+            .map(|p| [p, &[0.0, 0.0, 0.0, 1.0]].concat())
+            .collect(),
+    ))
+}
+
+/// The numbers of each pose of an answer: a vector per pose, or the packed
+/// numbers of all poses cut into poses of `stride` numbers when looked at
+/// (a compact answer is not copied pose by pose on the measured path).
+pub(crate) enum Poses {
+    Each(Vec<Vec<f64>>),
+    Packed { values: Vec<f64>, stride: usize },
+}
+
+impl Poses {
+    /// Number of poses.
+    fn len(&self) -> usize {
+        match self {
+            Poses::Each(v) => v.len(),
+            Poses::Packed { values, stride } => values.len() / (*stride).max(1),
+        }
+    }
+
+    /// The numbers of each pose, in order.
+    fn iter(&self) -> Box<dyn Iterator<Item = &[f64]> + '_> {
+        match self {
+            Poses::Each(v) => Box::new(v.iter().map(Vec::as_slice)),
+            Poses::Packed { values, stride } => Box::new(values.chunks((*stride).max(1))),
+        }
+    }
 }
 
 /// The numbers of each pose of a gRPC answer: the Pose messages' matrices
-/// (`full`) or the packed values cut into poses.
-fn grpc_poses(
-    poses: Vec<pb::Pose>,
-    packed: Option<pb::PackedPoses>,
-    format: PoseFormat,
-) -> Vec<Vec<f64>> {
+/// (`full`) or the packed values.
+fn grpc_poses(poses: Vec<pb::Pose>, packed: Option<pb::PackedPoses>, format: PoseFormat) -> Poses {
     match packed {
-        Some(p) => p
-            .values
-            .chunks(format.stride())
-            .map(<[f64]>::to_vec)
-            .collect(),
-        None => poses.into_iter().map(|p| p.matrix).collect(),
+        Some(p) => Poses::Packed {
+            values: p.values,
+            stride: format.stride(),
+        },
+        None => Poses::Each(poses.into_iter().map(|p| p.matrix).collect()),
     }
 }
 
@@ -331,13 +350,13 @@ async fn unary_worker(
         }
         let dof = plan.robot.as_ref().map_or(0, |r| r.dof());
         // Returns matrices of the poses received, or an error kind.
-        let outcome: Result<Vec<Vec<f64>>, String> = match args.target {
+        let outcome: Result<Poses, String> = match args.target {
             Target::RestHealth => match http
                 .get(format!("http://{}/healthz", args.http_addr))
                 .send()
                 .await
             {
-                Ok(r) if r.status().is_success() => Ok(Vec::new()),
+                Ok(r) if r.status().is_success() => Ok(Poses::Each(Vec::new())),
                 Ok(r) => Err(format!("http_{}", r.status().as_u16())),
                 Err(_) => Err("transport".into()),
             },
@@ -375,6 +394,7 @@ async fn unary_worker(
                         // which shares the machine with the server).
                         let bytes = r.bytes().await.unwrap_or_default();
                         decode_rest(&bytes, args.target == Target::RestBatch, args.pose_format)
+                            .map(Poses::Each)
                     }
                     Ok(r) => Err(format!("http_{}", r.status().as_u16())),
                     Err(_) => Err("transport".into()),
@@ -396,7 +416,7 @@ async fn unary_worker(
                             == tonic_health::pb::health_check_response::ServingStatus::Serving
                                 as i32 =>
                     {
-                        Ok(Vec::new())
+                        Ok(Poses::Each(Vec::new()))
                     }
                     Ok(_) => Err("not_serving".into()),
                     Err(s) => Err(format!("grpc_{:?}", s.code())),
