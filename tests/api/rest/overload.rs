@@ -36,7 +36,17 @@ async fn overloaded_is_503_with_retry_after() {
     );
     let client = app.client.clone();
     let url = format!("{}/v1/robots/ur5e/ik", app.http);
-    let computing = tokio::spawn(async move { client.post(url).json(&slow_ik()).send().await });
+    // The polls below take the only permit for a moment too: a slow request
+    // that arrives during one is refused, so it is sent again until admitted.
+    let computing = tokio::spawn(async move {
+        loop {
+            let r = client.post(&url).json(&slow_ik()).send().await;
+            if !matches!(&r, Ok(r) if r.status() == 503) {
+                return r;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+        }
+    });
     // Poll until the server has admitted the slow request (it then holds the only permit).
     let mut rejected = None;
     for _ in 0..500 {
