@@ -195,11 +195,12 @@ pub(crate) enum Poses {
 }
 
 impl Poses {
-    /// Number of poses.
+    /// Number of poses (a short last pose counts, as [`Poses::iter`] yields
+    /// it, so a truncated answer is a wrong pose count, not one pose fewer).
     fn len(&self) -> usize {
         match self {
             Poses::Each(v) => v.len(),
-            Poses::Packed { values, stride } => values.len() / (*stride).max(1),
+            Poses::Packed { values, stride } => values.len().div_ceil((*stride).max(1)),
         }
     }
 
