@@ -54,10 +54,11 @@ impl Message for JointConfiguration {
         ctx: DecodeContext,
     ) -> Result<(), DecodeError> {
         match tag {
-            1 => merge_packed(wire_type, &mut self.joints, buf, ctx).map_err(|mut e| {
-                e.push("JointConfiguration", "joints");
-                e
-            }),
+            1 => in_field(
+                merge_packed(wire_type, &mut self.joints, buf, ctx),
+                "JointConfiguration",
+                "joints",
+            ),
             _ => encoding::skip_field(wire_type, tag, buf, ctx),
         }
     }
@@ -86,21 +87,19 @@ impl Message for PackedPoses {
         buf: &mut impl Buf,
         ctx: DecodeContext,
     ) -> Result<(), DecodeError> {
-        let (result, field) = match tag {
-            1 => (
+        match tag {
+            1 => in_field(
                 encoding::int32::merge(wire_type, &mut self.format, buf, ctx),
+                "PackedPoses",
                 "format",
             ),
-            2 => (
+            2 => in_field(
                 merge_packed(wire_type, &mut self.values, buf, ctx),
+                "PackedPoses",
                 "values",
             ),
-            _ => return encoding::skip_field(wire_type, tag, buf, ctx),
-        };
-        result.map_err(|mut e| {
-            e.push("PackedPoses", field);
-            e
-        })
+            _ => encoding::skip_field(wire_type, tag, buf, ctx),
+        }
     }
 
     fn encoded_len(&self) -> usize {
@@ -116,6 +115,19 @@ impl Message for PackedPoses {
         self.format = 0;
         self.values.clear();
     }
+}
+
+/// `result` with its error, if any, marked as found in `message.field` (what
+/// prost's derived code adds to an error).
+fn in_field(
+    result: Result<(), DecodeError>,
+    message: &'static str,
+    field: &'static str,
+) -> Result<(), DecodeError> {
+    result.map_err(|mut e| {
+        e.push(message, field);
+        e
+    })
 }
 
 /// Bytes per value.
