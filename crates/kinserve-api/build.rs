@@ -18,6 +18,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // Compiled only into the descriptor set (served by reflection) so
         // that tools such as grpcurl decode the BadRequest details we send.
         root.join("google/rpc/error_details.proto"),
+        // Imported publicly by kinematics.proto (compiled through it).
+        root.join("kinematics/v1/types.proto"),
     ];
     for p in &protos {
         println!("cargo:rerun-if-changed={}", p.display());
