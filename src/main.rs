@@ -26,7 +26,8 @@ mod allocator {
 
     /// Arena memory committed as it is used instead of all at once (mimalloc's
     /// `arena_eager_commit` 0 instead of 2): idle RSS 20 MB instead of 35, and
-    /// a lower peak, at the same batch speed (BENCHMARKS.md, issue 28 "Memory").
+    /// a lower peak, at the same batch speed (docs/benchmarks-history.md, issue 28
+    /// "Before and after each change").
     /// Runs as a constructor of the executable, before the Rust runtime's
     /// first allocation reserves mimalloc's first arena (set in `main` it
     /// came too late). mimalloc reads `MIMALLOC_ARENA_EAGER_COMMIT` on the
