@@ -47,15 +47,7 @@ struct JointValues {
 /// masks (no branch).
 #[inline(always)]
 fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64) -> JointValues {
-    // Branch-free and call-free (a copy of the variable-length tail becomes a
-    // `memcpy` call): clamped loads, then zero where past the end.
-    let mut qb = [0.0; CHUNK];
-    if let Some(last) = q.len().checked_sub(1) {
-        for k in 0..CHUNK {
-            let v = q[(start + k).min(last)];
-            qb[k] = if start + k <= last { v } else { 0.0 };
-        }
-    }
+    let qb = load_chunk::<FMA>(q, start);
     let mut x = [0.0; CHUNK];
     for k in 0..CHUNK {
         x[k] = madd::<FMA>(qb[k], scale * l.rev[k], l.theta[k]);
@@ -74,6 +66,29 @@ fn joint_values<const FMA: bool>(l: &Lanes, q: &[f64], start: usize, scale: f64)
         v.dz[k] = l.dz[k] + v.qz[k];
     }
     v
+}
+
+/// `q[start..start + CHUNK]`, zero past the end of `q`.
+#[inline(always)]
+fn load_chunk<const FMA: bool>(q: &[f64], start: usize) -> [f64; CHUNK] {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        const { assert!(CHUNK == 8) };
+        // SAFETY: `FMA = true` is only instantiated by the x86_64 kernels
+        // (and the batch path's `redo`, which only they call), which run after
+        // the CPU check for AVX2 and FMA.
+        return unsafe { crate::lane::masked_load8(q, start) };
+    }
+    // Branch-free and call-free (a copy of the variable-length tail becomes a
+    // `memcpy` call): clamped loads, then zero where past the end.
+    let mut qb = [0.0; CHUNK];
+    if let Some(last) = q.len().checked_sub(1) {
+        for k in 0..CHUNK {
+            let v = q[(start + k).min(last)];
+            qb[k] = if start + k <= last { v } else { 0.0 };
+        }
+    }
+    qb
 }
 
 /// A 4-lane column of the single-pose state: [`Lane`] plus loading and storing.

@@ -103,6 +103,39 @@ pub(crate) use ymm::{Ymm, Ymm2};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use zmm::Zmm;
 
+/// `q[start..start + 8]` with the lanes past the end of `q` zero, in two
+/// masked AVX loads: one instruction per half, where the clamped scalar loads
+/// of the portable path become index arithmetic and a gather ahead of every
+/// single pose's sine/cosine (on its critical path).
+///
+/// # Safety
+/// The CPU must support AVX2 (only the x86_64 kernels call this, after the
+/// check). Lanes past the end of `q` are masked off: the ISA neither reads
+/// nor faults on them.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn masked_load8(q: &[f64], start: usize) -> [f64; 8] {
+    use std::arch::x86_64::{
+        __m256d, _mm256_cmpgt_epi64, _mm256_maskload_pd, _mm256_set_epi64x, _mm256_set1_epi64x,
+    };
+    // Lanes to load: 0..=8 (no overflow: a slice has at most isize::MAX elements).
+    let n = q.len().saturating_sub(start).min(8) as i64;
+    let base = q.as_ptr().wrapping_add(start.min(q.len()));
+    // SAFETY: AVX2 is the caller's promise; each enabled lane `k` has
+    // `start + k < q.len()`, so it reads inside `q`; disabled lanes are not
+    // accessed (masked loads do not fault on them), and `base` is at most
+    // one past the end of `q`, so `base + 4` is only formed, never read, when
+    // no lane of the upper half is enabled.
+    unsafe {
+        let lanes = _mm256_set_epi64x(3, 2, 1, 0);
+        let lo = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n), lanes);
+        let hi = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n - 4), lanes);
+        let a = _mm256_maskload_pd(base, lo);
+        let b = _mm256_maskload_pd(base.wrapping_add(4), hi);
+        std::mem::transmute::<[__m256d; 2], [f64; 8]>([a, b])
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 mod ymm {
     use super::Lane;
