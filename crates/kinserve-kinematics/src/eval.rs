@@ -432,6 +432,42 @@ fn redo<const FMA: bool>(
     }
 }
 
+/// `cos θ`, `sin θ` and `dz` of one joint for the eight poses of a batch block.
+#[derive(Clone, Copy)]
+struct BlockJoint {
+    c: [f64; LANES],
+    s: [f64; LANES],
+    dz: [f64; LANES],
+}
+
+/// Joint `j` of the eight configurations `cfg` as [`BlockJoint`] `out`;
+/// false if an angle needs `std` trigonometry (see [`batch_block`]).
+#[inline(always)]
+fn block_joint<const FMA: bool>(
+    st: &crate::program::Step,
+    cfg: &[&[f64]; LANES],
+    j: usize,
+    scale: f64,
+    out: &mut BlockJoint,
+) -> bool {
+    let mut qv = [0.0; LANES];
+    for k in 0..LANES {
+        qv[k] = cfg[k][j];
+    }
+    let sc = scale * st.rev;
+    let mut x = [0.0; LANES];
+    for k in 0..LANES {
+        x[k] = madd::<FMA>(qv[k], sc, st.theta);
+    }
+    let (sp, cp, bad) = sincos_poly_lanes::<FMA, LANES>(&x);
+    for k in 0..LANES {
+        out.c[k] = madd::<FMA>(st.rev, cp[k], st.pri * st.ct);
+        out.s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
+        out.dz[k] = st.c[3][2] + qv[k] * st.pri;
+    }
+    !bad
+}
+
 /// Eight poses in structure-of-arrays form: every entry of the 3×4 state is an
 /// 8-wide vector, so each step is whole-vector arithmetic; the joint kind is
 /// dispatched once per joint for all eight. No call inside, so the state stays
@@ -456,27 +492,24 @@ unsafe fn batch_block<const FMA: bool, V: Lane8>(
         }
     }
     let mut ok = true;
-    for (j, st) in p.steps.iter().enumerate().take(dof) {
-        let mut qv = [0.0; LANES];
-        for k in 0..LANES {
-            qv[k] = cfg[k][j];
+    for (ci, steps) in p.steps[..dof].chunks(CHUNK).enumerate() {
+        // First every joint's cos, sin and dz of this chunk (independent of
+        // each other, so their polynomials overlap), then the steps (one
+        // dependent chain). Interleaved, each step waited for its joint's
+        // sine/cosine behind a dispatch.
+        let mut v = [BlockJoint {
+            c: [0.0; LANES],
+            s: [0.0; LANES],
+            dz: [0.0; LANES],
+        }; CHUNK];
+        for (jj, st) in steps.iter().enumerate() {
+            ok &= block_joint::<FMA>(st, &cfg, ci * CHUNK + jj, scale, &mut v[jj]);
         }
-        let sc = scale * st.rev;
-        let mut x = [0.0; LANES];
-        for k in 0..LANES {
-            x[k] = madd::<FMA>(qv[k], sc, st.theta);
+        for (st, v) in steps.iter().zip(&v) {
+            // SAFETY: forwarded from this function's own contract.
+            let (c, s, dz) = unsafe { (V::load8(&v.c), V::load8(&v.s), V::load8(&v.dz)) };
+            step::apply::<V, 3>(st, &mut m, c, s, dz);
         }
-        let (sp, cp, bad) = sincos_poly_lanes::<FMA, LANES>(&x);
-        ok &= !bad;
-        let (mut c, mut s, mut dz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        for k in 0..LANES {
-            c[k] = madd::<FMA>(st.rev, cp[k], st.pri * st.ct);
-            s[k] = madd::<FMA>(st.rev, sp[k], st.pri * st.st);
-            dz[k] = st.c[3][2] + qv[k] * st.pri;
-        }
-        // SAFETY: forwarded from this function's own contract.
-        let (c, s, dz) = unsafe { (V::load8(&c), V::load8(&s), V::load8(&dz)) };
-        step::apply::<V, 3>(st, &mut m, c, s, dz);
     }
     // Out of the vectors once (so the loop above keeps them in registers), then
     // one pose per lane.
