@@ -124,14 +124,24 @@ fn internal(detail: &str) -> Error {
     }
 }
 
-/// `value` as JSON, in a buffer of `capacity` bytes to start with.
+/// `value` as JSON, in a buffer of `capacity` bytes to start with, under
+/// the request's `encode` span.
 pub(super) fn json_bytes<T: serde::Serialize>(
     value: &T,
     capacity: usize,
 ) -> Result<Vec<u8>, Error> {
     let _encode = crate::trace_span!("encode").entered();
+    json_vec(value, capacity).map_err(|e| internal(&e.to_string()))
+}
+
+/// `value` as JSON in a buffer of `capacity` bytes to start with (no span:
+/// the WebSocket's messages have none of their own).
+pub(super) fn json_vec<T: serde::Serialize>(
+    value: &T,
+    capacity: usize,
+) -> serde_json::Result<Vec<u8>> {
     let mut bytes = Vec::with_capacity(capacity);
-    serde_json::to_writer(&mut bytes, value).map_err(|e| internal(&e.to_string()))?;
+    serde_json::to_writer(&mut bytes, value)?;
     Ok(bytes)
 }
 

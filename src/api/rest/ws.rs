@@ -270,7 +270,21 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
         error: Some(Problem::from_error(e)),
         ..WsReply::empty(id)
     };
-    serde_json::to_string(&reply).unwrap_or_default()
+    reply_text(&reply, REPLY_CAPACITY)
+}
+
+/// Bytes reserved for a reply to one configuration: an FK answer in the
+/// `full` format is ~400 bytes, so the text is written without regrowing
+/// (`serde_json::to_string` starts at 128 and doubles: two copies). A reply
+/// to many configurations reserves about its size per configuration.
+const REPLY_CAPACITY: usize = 512;
+
+/// `reply` as JSON text, written into `capacity` bytes reserved up front.
+fn reply_text(reply: &WsReply<'_>, capacity: usize) -> String {
+    super::streamed::json_vec(reply, capacity)
+        .ok()
+        .and_then(|bytes| String::from_utf8(bytes).ok())
+        .unwrap_or_default()
 }
 
 /// The reply to one text message: parsed into the protocol-neutral
@@ -317,6 +331,17 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 /// A successful reply: FK (pose and frames in the message's format, with the
 /// Jacobian and the operations on one configuration when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
+    let capacity = match answer {
+        StreamAnswer::FkBatch { poses, pose_format } => {
+            let per_pose = match pose_format {
+                PoseFormat::Full => REPLY_CAPACITY,
+                PoseFormat::Matrix => 320,
+                PoseFormat::Position => 80,
+            };
+            per_pose.saturating_mul(poses.len()).saturating_add(64)
+        }
+        _ => REPLY_CAPACITY,
+    };
     let reply = match answer {
         // Many configurations: in the field `POST …/fk/batch` uses.
         StreamAnswer::FkBatch { poses, pose_format } => {
@@ -354,5 +379,5 @@ fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnsw
             ..WsReply::posed(id, length_unit, *pose_format, fk.pose, fk.frames.as_deref())
         },
     };
-    serde_json::to_string(&reply).unwrap_or_default()
+    reply_text(&reply, capacity)
 }
