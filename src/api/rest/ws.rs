@@ -276,7 +276,7 @@ fn error_reply(id: &serde_json::Value, e: &Error) -> String {
 /// Bytes reserved for a reply to one configuration: an FK answer in the
 /// `full` format is ~400 bytes, so the text is written without regrowing
 /// (`serde_json::to_string` starts at 128 and doubles: two copies). A reply
-/// to many configurations reserves about its size per configuration.
+/// to many configurations reserves what the REST batch answer does.
 const REPLY_CAPACITY: usize = 512;
 
 /// `reply` as JSON text, written into `capacity` bytes reserved up front.
@@ -332,13 +332,9 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
 /// Jacobian and the operations on one configuration when asked for) or IK (always the full pose).
 fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnswer) -> String {
     let capacity = match answer {
+        // As the REST batch answer reserves it.
         StreamAnswer::FkBatch { poses, pose_format } => {
-            let per_pose = match pose_format {
-                PoseFormat::Full => REPLY_CAPACITY,
-                PoseFormat::Matrix => 320,
-                PoseFormat::Position => 80,
-            };
-            per_pose.saturating_mul(poses.len()).saturating_add(64)
+            super::streamed::estimated_bytes(*pose_format, poses.len()).saturating_add(128)
         }
         _ => REPLY_CAPACITY,
     };
