@@ -1,5 +1,6 @@
 //! Contract tests: the real server on port 0, spoken to with real clients.
 mod browser;
+mod browser_compute;
 mod browser_ik;
 mod browser_ik_tools;
 mod browser_link;

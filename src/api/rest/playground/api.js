@@ -57,9 +57,58 @@ async function request(method, path, { body, headers = {}, signal } = {}) {
   if (!resp.ok) {
     const problem = data && typeof data === 'object' ? { ...data } : {};
     if (!problem.detail && !problem.title) problem.title = `${resp.status} ${resp.statusText}`.trim();
-    throw new ApiError(resp.status, problem);
+    const err = new ApiError(resp.status, problem);
+    err.retryAfterMs = retryAfterMs(resp.headers.get('Retry-After'));
+    throw err;
   }
   return { status: resp.status, statusText: resp.statusText, data };
+}
+
+// ------------------------------------------------------- compute requests --
+// The server runs batches, IK, closed forms and URDF imports on a compute pool
+// of which one client (an IP address) holds at most a share — on a two-core
+// server, one computation — and refuses past it at once (503 + Retry-After).
+// So the page sends those requests one at a time (its own requests never
+// refuse each other), and a refusal (another tab at the same address, or this
+// page's WebSocket IK holding the share) is retried after Retry-After, up to
+// POOL_RETRIES times.
+const POOL_RETRIES = 4;
+let poolLane = Promise.resolve();
+
+/** Retry-After (seconds) as a wait in ms: 1 s when absent, at most 5 s. */
+function retryAfterMs(header) {
+  const s = Number(header);
+  return header !== null && Number.isFinite(s) && s >= 0 ? Math.min(s, 5) * 1000 : 1000;
+}
+
+function pause(ms, signal) {
+  return new Promise((resolve, reject) => {
+    if (signal && signal.aborted) return reject(new DOMException('Aborted', 'AbortError'));
+    const t = setTimeout(resolve, ms);
+    if (signal) {
+      signal.addEventListener('abort', () => {
+        clearTimeout(t);
+        reject(new DOMException('Aborted', 'AbortError'));
+      }, { once: true });
+    }
+  });
+}
+
+/** `request` on the page's compute lane: after the one before it, retried on 503. */
+function pooled(method, path, opts = {}) {
+  const task = async () => {
+    for (let attempt = 0; ; attempt += 1) {
+      try {
+        return await request(method, path, opts);
+      } catch (err) {
+        if (!(err instanceof ApiError) || err.status !== 503 || attempt >= POOL_RETRIES) throw err;
+        await pause(err.retryAfterMs, opts.signal);
+      }
+    }
+  };
+  const run = poolLane.then(task, task);
+  poolLane = run.catch(() => undefined);
+  return run;
 }
 
 const robotPath = (name) => `/v1/robots/${encodeURIComponent(name)}`;
@@ -81,7 +130,7 @@ export async function getRobot(name, signal) {
 
 /** `POST /v1/robots/{name}/fk/batch` with joints in degrees (revolute). */
 export async function fkBatch(name, configurations, signal) {
-  const { data } = await request('POST', `${robotPath(name)}/fk/batch`, {
+  const { data } = await pooled('POST', `${robotPath(name)}/fk/batch`, {
     body: { configurations, angle_unit: 'deg' },
     signal,
   });
@@ -90,7 +139,7 @@ export async function fkBatch(name, configurations, signal) {
 
 /** `POST /v1/robots/{name}/jacobian/batch` with joints in degrees (revolute). */
 export async function jacobianBatch(name, configurations, signal) {
-  const { data } = await request('POST', `${robotPath(name)}/jacobian/batch`, {
+  const { data } = await pooled('POST', `${robotPath(name)}/jacobian/batch`, {
     body: { configurations, angle_unit: 'deg' },
     signal,
   });
@@ -108,13 +157,19 @@ export async function fkFrames(name, joints, signal) {
 
 /** `POST /v1/robots/{name}/ik` with `body` as given (a 422 is an `ApiError`). */
 export async function solveIk(name, body, signal) {
-  const { data } = await request('POST', `${robotPath(name)}/ik`, { body, signal });
+  const { data } = await pooled('POST', `${robotPath(name)}/ik`, { body, signal });
   return data;
 }
 
 /** `POST /v1/robots/{name}/ik/path` with `body` as given. */
 export async function ikPath(name, body, signal) {
-  const { data } = await request('POST', `${robotPath(name)}/ik/path`, { body, signal });
+  const { data } = await pooled('POST', `${robotPath(name)}/ik/path`, { body, signal });
+  return data;
+}
+
+/** `GET /v1/robots/{name}/closed-form`: the DH table as closed-form FK. */
+export async function closedForm(name, signal) {
+  const { data } = await pooled('GET', `${robotPath(name)}/closed-form`, { signal });
   return data;
 }
 
@@ -147,7 +202,7 @@ export async function importUrdf(name, urdf, { tipLink, convention, token } = {}
   const headers = { 'Content-Type': 'application/xml' };
   if (token) headers.Authorization = `Bearer ${token}`;
   const query = q.toString();
-  return request('PUT', `${robotPath(name)}${query ? `?${query}` : ''}`, { body: urdf, headers });
+  return pooled('PUT', `${robotPath(name)}${query ? `?${query}` : ''}`, { body: urdf, headers });
 }
 
 /**

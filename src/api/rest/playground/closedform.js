@@ -3,6 +3,9 @@
 // natively by the browser), with the symbols' values and the text forms.
 // Server MathML is rebuilt element by element from a fixed list of MathML
 // tags (no attributes, text through textContent), never assigned as HTML.
+// Depends on api.js only.
+
+import { closedForm, problemText } from './api.js';
 
 const MATHML_NS = 'http://www.w3.org/1998/Math/MathML';
 const TAGS = new Set(['math', 'mrow', 'mi', 'mn', 'mo', 'msub', 'mtable', 'mtr', 'mtd']);
@@ -47,18 +50,12 @@ export async function showClosedForm(name, isCurrent) {
   status.textContent = 'Loading…';
   let cf;
   try {
-    const r = await fetch(`/v1/robots/${encodeURIComponent(name)}/closed-form`);
-    const body = await r.json();
-    if (!isCurrent()) return;
-    if (!r.ok) {
-      status.textContent = `No closed form: ${body.detail || r.status}`;
-      return;
-    }
-    cf = body;
+    cf = await closedForm(name);
   } catch (err) {
-    if (isCurrent()) status.textContent = `No closed form: ${err.message}`;
+    if (isCurrent()) status.textContent = `No closed form: ${problemText(err)}`;
     return;
   }
+  if (!isCurrent()) return;
   const n = cf.link_transforms.length;
   status.textContent = `⁰T${sub(n)} = A₁ ⋯ A${sub(n)} of the DH rows (${cf.convention} convention); FK = base · ⁰T${sub(n)} · tool. cI = cos(θ sum over I), sI = sin(…).`;
   const total = document.createElement('div');
