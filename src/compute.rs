@@ -108,6 +108,17 @@ pub struct FairBudget {
     total: Arc<Semaphore>,
     shares: Arc<Shares>,
     size: usize,
+    name: BudgetName,
+}
+
+/// What a [`FairBudget`] counts and the flag that sizes it, for the words of
+/// its refusals.
+#[derive(Clone, Copy, Debug)]
+struct BudgetName {
+    /// Plural, e.g. `computations`.
+    units: &'static str,
+    /// e.g. `--compute-threads`.
+    flag: &'static str,
 }
 
 #[derive(Debug)]
@@ -172,6 +183,50 @@ impl FairBudget {
                 held: Mutex::new(HashMap::new()),
             }),
             size,
+            name: BudgetName {
+                units: "units",
+                flag: "its flag",
+            },
+        }
+    }
+
+    /// The budget, its refusals saying that it counts `units` (plural, e.g.
+    /// `"computations on the compute pool"`) and is sized by `flag`.
+    ///
+    /// ```
+    /// use kinserve::compute::{ClientId, FairBudget};
+    /// let b = FairBudget::new(2, 1).named("streams", "--max-streams");
+    /// let me = ClientId::from_ip("192.0.2.7".parse().unwrap());
+    /// let _held = b.try_acquire(me).unwrap();
+    /// let refusal = b.try_acquire(me).unwrap_err().to_string();
+    /// assert!(refusal.contains("client 192.0.2.7 holds 1 of the server's 2 streams"), "{refusal}");
+    /// ```
+    pub fn named(mut self, units: &'static str, flag: &'static str) -> FairBudget {
+        self.name = BudgetName { units, flag };
+        self
+    }
+
+    /// The refusal of a client holding its share.
+    fn share_refusal(&self, client: ClientId) -> Error {
+        let BudgetName { units, flag } = self.name;
+        Error::Overloaded {
+            detail: format!(
+                "client {client} holds {} of the server's {} {units}, its share \
+                 (--client-share-percent of {flag}): wait until one has ended, \
+                 or retry after Retry-After",
+                self.shares.share, self.size
+            ),
+        }
+    }
+
+    /// The refusal when every unit is taken.
+    fn full_refusal(&self) -> Error {
+        let BudgetName { units, flag } = self.name;
+        Error::Overloaded {
+            detail: format!(
+                "all {} of the server's {units} are taken ({flag}): retry after Retry-After",
+                self.size
+            ),
         }
     }
 
@@ -197,7 +252,10 @@ impl FairBudget {
         if self.shares.share >= self.size {
             return Ok(None);
         }
-        self.shares.take(client).map(Some).ok_or(Error::Overloaded)
+        match self.shares.take(client) {
+            Some(guard) => Ok(Some(guard)),
+            None => Err(self.share_refusal(client)),
+        }
     }
 
     /// A unit for `client` now, or [`Error::Overloaded`] (nothing taken)
@@ -208,7 +266,7 @@ impl FairBudget {
             .total
             .clone()
             .try_acquire_owned()
-            .map_err(|_| Error::Overloaded)?;
+            .map_err(|_| self.full_refusal())?;
         Ok(FairPermit {
             _total: Some(total),
             _share: share,
@@ -250,7 +308,8 @@ impl ComputePool {
     /// `share` of them for one client.
     pub fn new(permits: usize, share: usize) -> ComputePool {
         ComputePool {
-            permits: FairBudget::new(permits, share),
+            permits: FairBudget::new(permits, share)
+                .named("computations on the compute pool", "--compute-threads"),
         }
     }
 

@@ -85,9 +85,14 @@ pub enum Error {
         /// What was sent and what is accepted.
         detail: String,
     },
-    /// Too many requests in flight; retry later (HTTP 503 + Retry-After, gRPC RESOURCE_EXHAUSTED).
-    #[error("server overloaded, retry later")]
-    Overloaded,
+    /// A budget of the server's is spent, or the client holds its share of
+    /// it; retry later (HTTP 503 + Retry-After, gRPC RESOURCE_EXHAUSTED).
+    #[error("server overloaded: {detail}")]
+    Overloaded {
+        /// Which budget (and its flag), how much of it the client holds, and
+        /// what to do.
+        detail: String,
+    },
     /// The server is starting or shutting down (HTTP 503, gRPC UNAVAILABLE).
     #[error("service unavailable: {detail}")]
     Unavailable {
@@ -162,7 +167,8 @@ impl Error {
     /// Exhaustive: every error has its kind here.
     ///
     /// ```
-    /// assert_eq!(kinserve::error::Error::Overloaded.kind(), "overloaded");
+    /// let busy = kinserve::error::Error::Overloaded { detail: "all 2 streams are open".into() };
+    /// assert_eq!(busy.kind(), "overloaded");
     /// ```
     pub fn kind(&self) -> &'static str {
         match self {
@@ -177,7 +183,7 @@ impl Error {
             Error::Full { .. } => "registry-full",
             Error::TooLarge { .. } => "too-large",
             Error::UnsupportedMediaType { .. } => "unsupported-media-type",
-            Error::Overloaded => "overloaded",
+            Error::Overloaded { .. } => "overloaded",
             Error::Unavailable { .. } => "unavailable",
             Error::Storage { .. } => "storage",
             Error::IkNotConverged { .. } => "ik-not-converged",

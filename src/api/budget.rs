@@ -130,7 +130,7 @@ impl StreamBudget {
     /// (at least one) on any connection and `per_client` on any client's.
     pub fn new(total: usize, per_connection: usize, per_client: usize) -> StreamBudget {
         StreamBudget {
-            total: FairBudget::new(total, per_client),
+            total: FairBudget::new(total, per_client).named("streams", "--max-streams"),
             per_connection: per_connection.max(1),
         }
     }
@@ -152,7 +152,13 @@ impl StreamBudget {
         if let Some(c) = connection
             && !try_add(&c.0, 1, self.per_connection)
         {
-            return Err(Error::Overloaded);
+            return Err(Error::Overloaded {
+                detail: format!(
+                    "this connection has {} streams open (--max-streams-per-connection): \
+                     end one, or open another connection",
+                    self.per_connection
+                ),
+            });
         }
         let connection = connection.cloned();
         match self.total.try_acquire(client) {
@@ -171,6 +177,24 @@ impl StreamBudget {
 }
 
 // ---------------------------------------------------------------- bytes
+
+/// The refusal when the buffered request bytes budget is spent.
+pub fn request_bytes_refusal() -> Error {
+    Error::Overloaded {
+        detail: "the server's buffer for request bodies is full \
+                 (--max-buffered-request-bytes): retry after Retry-After"
+            .into(),
+    }
+}
+
+/// The refusal when the buffered response bytes budget is spent.
+pub fn response_bytes_refusal() -> Error {
+    Error::Overloaded {
+        detail: "the server's buffer for answers is full \
+                 (--max-buffered-response-bytes): retry after Retry-After"
+            .into(),
+    }
+}
 
 /// A budget of bytes held at once, shared by everything that reserves from
 /// it (cloning shares it).

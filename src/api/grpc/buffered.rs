@@ -29,8 +29,7 @@ use tonic::body::Body;
 use tonic::codegen::http;
 use tower::{Layer, Service};
 
-use crate::api::budget::{ByteBudget, Reservation};
-use crate::error::Error;
+use crate::api::budget::{ByteBudget, Reservation, request_bytes_refusal};
 
 /// Bytes a request may hold without charge (one HTTP/2 stream window).
 pub const FREE_BYTES: usize = 64 << 10;
@@ -222,7 +221,7 @@ impl http_body::Body for Charged {
             metrics::counter!("kinserve_grpc_rejected_total", "reason" => "buffered_bytes")
                 .increment(1);
             tracing::debug!("gRPC request refused: the buffered request bytes budget is spent");
-            return Poll::Ready(Some(Err(Status::from(Error::Overloaded))));
+            return Poll::Ready(Some(Err(Status::from(request_bytes_refusal()))));
         }
         Poll::Ready(Some(Ok(frame)))
     }

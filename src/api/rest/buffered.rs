@@ -37,6 +37,7 @@ use super::body_budget::Reservation;
 use super::conn::{BodyTicket, ConnActivity};
 use super::problem::ApiError;
 use super::{Admission, AppState, refuse_unread};
+use crate::api::budget::{request_bytes_refusal, response_bytes_refusal};
 use crate::error::Error;
 
 /// Answers smaller than this are not counted against the response budget
@@ -63,7 +64,7 @@ fn read_ahead(req: &Request) -> bool {
 
 /// The refusal for `e` before the body was read whole: the connection closes after it.
 fn refuse(e: Error) -> Response {
-    if matches!(e, Error::Overloaded) {
+    if matches!(e, Error::Overloaded { .. }) {
         metrics::counter!("kinserve_http_rejected_total", "reason" => "request_bytes").increment(1);
     }
     refuse_unread(true, ApiError(e).into_response())
@@ -98,7 +99,7 @@ pub async fn read_body(
     }
     let expected = declared.unwrap_or(0);
     let Some(mut held) = state.budgets().request.try_reserve(expected) else {
-        return Err(refuse(Error::Overloaded));
+        return Err(refuse(request_bytes_refusal()));
     };
     let (parts, body) = req.into_parts();
     let bytes = collect(body, expected, limit, &mut held, state)
@@ -135,11 +136,11 @@ async fn collect(
             return Err(too_large(limit));
         }
         if !held.grow_to(buf.len() + data.len()) {
-            return Err(Error::Overloaded);
+            return Err(request_bytes_refusal());
         }
         buf.extend_from_slice(&data);
         if !held.grow_to(buf.capacity()) {
-            return Err(Error::Overloaded);
+            return Err(request_bytes_refusal());
         }
     }
     Ok(Bytes::from(buf))
@@ -207,7 +208,7 @@ pub fn hold_response(
             bytes = size,
             "answer dropped: the response byte budget is spent"
         );
-        return ApiError(Error::Overloaded).into_response();
+        return ApiError(response_bytes_refusal()).into_response();
     };
     let ticket = conn.map(|c| c.body());
     resp.map(|body| {

@@ -75,7 +75,8 @@ impl AppState {
                     inner.settings.max_concurrent_batches,
                     inner.settings.client_share_percent,
                 ),
-            ),
+            )
+            .named("batch requests under way", "--max-concurrent-batches"),
         };
         AppState(Arc::new(Shared { inner, budgets }))
     }
@@ -313,13 +314,17 @@ async fn admit(
         Ok(read) => read,
         Err(refusal) => return refusal,
     };
-    let Ok(_permit) = state.permits.try_acquire(client) else {
-        metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded").increment(1);
-        // A body read ahead is not left unread: the connection can be kept.
-        return refuse_unread(
-            body_bytes.is_none() && has_body(req.headers()),
-            ApiError(Error::Overloaded).into_response(),
-        );
+    let _permit = match state.permits.try_acquire(client) {
+        Ok(permit) => permit,
+        Err(refusal) => {
+            metrics::counter!("kinserve_http_rejected_total", "reason" => "overloaded")
+                .increment(1);
+            // A body read ahead is not left unread: the connection can be kept.
+            return refuse_unread(
+                body_bytes.is_none() && has_body(req.headers()),
+                ApiError(refusal).into_response(),
+            );
+        }
     };
     let _body_bytes = body_bytes;
     let run = async {

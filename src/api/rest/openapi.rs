@@ -184,7 +184,12 @@ fn problem_example(code: &str) -> Option<Value> {
             );
             return serde_json::to_value(p).ok();
         }
-        "503" => Error::Overloaded,
+        "503" => Error::Overloaded {
+            detail: "client 203.0.113.9 holds 1 of the server's 2 computations on the compute \
+                     pool, its share (--client-share-percent of --compute-threads): wait until \
+                     one has ended, or retry after Retry-After"
+                .into(),
+        },
         "507" => Error::Storage {
             detail: "cannot write robot 'my-arm': no space left on device".into(),
         },

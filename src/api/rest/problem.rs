@@ -55,7 +55,7 @@ fn classify(e: &Error) -> (StatusCode, &'static str) {
         Error::UnsupportedMediaType { .. } => {
             (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type")
         }
-        Error::Overloaded => (StatusCode::SERVICE_UNAVAILABLE, "Server overloaded"),
+        Error::Overloaded { .. } => (StatusCode::SERVICE_UNAVAILABLE, "Server overloaded"),
         Error::Unavailable { .. } => (StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
         Error::Storage { .. } => (StatusCode::INSUFFICIENT_STORAGE, "Storage failure"),
         Error::IkNotConverged { .. } => (
@@ -158,7 +158,7 @@ impl IntoResponse for ApiError {
             Error::Unauthenticated => {
                 h.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
             }
-            Error::Overloaded | Error::Unavailable { .. } => {
+            Error::Overloaded { .. } | Error::Unavailable { .. } => {
                 h.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
             }
             Error::StoreUnavailable { .. } => {

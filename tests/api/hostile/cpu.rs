@@ -371,6 +371,15 @@ async fn a_client_holding_its_compute_share_is_refused_at_once_and_another_is_se
         start.elapsed() <= SERVED_WITHIN,
         "refused at once, not queued"
     );
+    // The refusal says whose share, of what, and what to do.
+    let why = refused.message();
+    for part in [
+        "client 127.0.0.1 holds 1 of the server's 2 computations on the compute pool",
+        "--client-share-percent of --compute-threads",
+        "retry after Retry-After",
+    ] {
+        assert!(why.contains(part), "{why:?} says {part:?}");
+    }
     // … while another client's batch is computed.
     let mut other = grpc_from(WITNESS_ADDR, &app.grpc).await;
     let q = kinserve::api::grpc::pb::JointConfiguration {

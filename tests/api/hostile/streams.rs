@@ -356,6 +356,12 @@ async fn websockets_past_the_stream_budget_get_503_before_the_upgrade() {
     let body: serde_json::Value =
         serde_json::from_slice(resp.body().as_deref().expect("a problem body")).unwrap();
     assert_eq!(body["type"], "urn:kinserve:problem:overloaded", "{body}");
+    assert_eq!(
+        body["detail"],
+        "server overloaded: all 3 of the server's streams are taken (--max-streams): \
+         retry after Retry-After",
+        "the refusal names the budget and its flag"
+    );
     assert_eq!(probe_stream(&app.grpc).await, Err(Code::ResourceExhausted));
     // Unary calls and REST are not streams: still served.
     let r = app
