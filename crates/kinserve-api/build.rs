@@ -46,6 +46,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // message and reply was 448 bytes, moved several times per message.
         .boxed(".kinematics.v1.StreamForwardKinematicsRequest.ik_path")
         .boxed(".kinematics.v1.StreamForwardKinematicsResponse.ik_path")
+        // The full pose (168 bytes) in the reply's oneof, and the packed
+        // frames and poses (32 each) the other messages carry: inline, they
+        // made every compact FK reply 344 bytes, moved about a dozen times.
+        .boxed(".kinematics.v1.StreamForwardKinematicsResponse.result.pose")
+        .boxed(".kinematics.v1.StreamForwardKinematicsResponse.packed_frames")
+        .boxed(".kinematics.v1.StreamForwardKinematicsResponse.packed_poses")
         .compile_protos(
             &[protos[0].clone(), protos[2].clone()],
             &[root, protoc_bin_vendored::include_path()?],

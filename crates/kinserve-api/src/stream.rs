@@ -106,3 +106,20 @@ fn fk_batch(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
         pose_format,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::pb;
+
+    /// A stream's messages and replies are moved several times each on the
+    /// way through the stream's queues, so the large or rarely set parts are
+    /// boxed (`build.rs`): what is moved stays a few cache lines.
+    #[test]
+    fn stream_messages_are_small() {
+        let reply = size_of::<pb::StreamForwardKinematicsResponse>();
+        let request = size_of::<pb::StreamForwardKinematicsRequest>();
+        eprintln!("reply {reply} bytes, request {request} bytes");
+        assert!(reply <= 192, "a reply is {reply} bytes");
+        assert!(request <= 192, "a request is {request} bytes");
+    }
+}

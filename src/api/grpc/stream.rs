@@ -94,7 +94,7 @@ fn stream_response(
             pb::StreamForwardKinematicsResponse {
                 length_unit: unit,
                 poses,
-                packed_poses,
+                packed_poses: packed_poses.map(Box::new),
                 ..Default::default()
             }
         }
@@ -108,7 +108,7 @@ fn stream_response(
         StreamAnswer::Ik(a) => {
             let result = pb::InverseKinematicsResult::from(&a);
             pb::StreamForwardKinematicsResponse {
-                result: result.pose.clone().map(Answer::Pose),
+                result: result.pose.clone().map(|p| Answer::Pose(Box::new(p))),
                 length_unit: unit,
                 ik: Some(Box::new(result)),
                 ..Default::default()
@@ -124,7 +124,7 @@ fn stream_response(
             let (result, frames, packed_frames) =
                 match packed_to_pb(pose_format, std::iter::once(&fk.pose)) {
                     None => (
-                        Answer::Pose(pose_to_pb(&fk.pose)),
+                        Answer::Pose(Box::new(pose_to_pb(&fk.pose))),
                         frames.iter().map(pose_to_pb).collect(),
                         None,
                     ),
@@ -140,7 +140,7 @@ fn stream_response(
                 length_unit: unit,
                 frames,
                 jacobian: jacobian.map(|j| Box::new(pb::JacobianResult::from(&j))),
-                packed_frames,
+                packed_frames: packed_frames.map(Box::new),
                 ..Default::default()
             };
             kinserve_api::put_stream_answers(&ops, &mut reply);

@@ -143,7 +143,7 @@ async fn a_multi_configuration_reply_equals_the_unary_batch_byte_for_byte() {
             robot: unary.robot.clone(),
             length_unit: reply.length_unit,
             poses: reply.poses,
-            packed_poses: reply.packed_poses,
+            packed_poses: reply.packed_poses.map(|p| *p),
         };
         assert_eq!(
             as_batch.encode_to_vec(),

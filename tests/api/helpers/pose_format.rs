@@ -224,7 +224,7 @@ pub(crate) async fn fk_numbers(
         Door::GrpcStream => {
             let m = stream_once(app, robot, joints, format_options(format, frames)).await;
             let (pose, packed) = match &m.result {
-                Some(StreamResult::Pose(p)) => (Some(p), None),
+                Some(StreamResult::Pose(p)) => (Some(&**p), None),
                 Some(StreamResult::PackedPose(p)) => (None, Some(p)),
                 other => panic!("stream answer {other:?}"),
             };
@@ -232,7 +232,7 @@ pub(crate) async fn fk_numbers(
                 pose,
                 &m.frames,
                 packed,
-                m.packed_frames.as_ref(),
+                m.packed_frames.as_deref(),
                 format,
                 frames,
             )
