@@ -19,30 +19,47 @@ HTTP=127.0.0.1:${HTTP_PORT:-18580}
 GRPC=127.0.0.1:${GRPC_PORT:-18551}
 RUNS=${RUNS:-"grpc-health;grpc-stream --pipeline 32 --pose-format matrix;grpc-stream --pipeline 32;ws --pipeline 32 --pose-format matrix;rest"}
 IFS=';' read -r -a runs <<<"$RUNS"
-pid=""
-trap '[ -n "$pid" ] && kill "$pid" 2>/dev/null' EXIT
+pid="" data="" log=$(mktemp)
+cleanup() {
+  if [ -n "$pid" ]; then kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; fi
+  [ -n "$data" ] && rm -rf "$data"
+  rm -f "$log"
+}
+trap cleanup EXIT
 
+# rate ARGS...: poses/s of one kinserve-load run (requests/s for a run without
+# poses, e.g. health), or "failed" with the load generator's error on stderr.
 rate() {
-  "$OLD/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot puma560 \
-    --duration "$DURATION" --warmup 1s --concurrency 16 --json --target "$@" |
-    python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))'
+  local out
+  if ! out=$("$OLD/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot puma560 \
+    --duration "$DURATION" --warmup 1s --concurrency 16 --json --target "$@"); then
+    echo "failed"; return
+  fi
+  python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))' <<<"$out"
 }
 
 for round in $(seq "$ROUNDS"); do
   for dir in "$OLD" "$NEW"; do
+    if curl -fs "http://$HTTP/readyz" >/dev/null 2>&1; then
+      echo "something already answers on $HTTP: set HTTP_PORT / GRPC_PORT" >&2; exit 1
+    fi
     data=$(mktemp -d)
     env KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR="$data" \
       KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 \
-      KINSERVE_COMPUTE_THREADS=64 RUST_LOG=warn "$dir/kinserve" serve 2>/dev/null &
+      KINSERVE_COMPUTE_THREADS=64 RUST_LOG=warn "$dir/kinserve" serve 2>"$log" &
     pid=$!
     for _ in $(seq 100); do curl -fs "http://$HTTP/readyz" >/dev/null 2>&1 && break; sleep 0.1; done
+    curl -fs "http://$HTTP/readyz" >/dev/null || { echo "$dir/kinserve did not start:" >&2; cat "$log" >&2; exit 1; }
     line="round $round $dir:"
     for run in "${runs[@]}"; do
       # shellcheck disable=SC2086 # each run is its own word list
       line+=" [$run] $(rate $run)"
     done
     echo "$line"
-    kill "$pid"; wait "$pid" 2>/dev/null || true
+    kill "$pid" 2>/dev/null || true
+    wait "$pid" 2>/dev/null || true
+    pid=""
     rm -rf "$data"
+    data=""
   done
 done

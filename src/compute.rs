@@ -173,8 +173,19 @@ impl Shares {
 }
 
 impl FairBudget {
-    /// `size` units (at least 1), at most `share` (at least 1, at most `size`) per client.
-    pub fn new(size: usize, share: usize) -> FairBudget {
+    /// `size` units (at least 1), at most `share` (at least 1, at most `size`)
+    /// per client; its refusals say that it counts `units` (plural, e.g.
+    /// `"computations on the compute pool"`) and is sized by `flag`.
+    ///
+    /// ```
+    /// use kinserve::compute::{ClientId, FairBudget};
+    /// let b = FairBudget::new("streams", "--max-streams", 2, 1);
+    /// let me = ClientId::from_ip("192.0.2.7".parse().unwrap());
+    /// let _held = b.try_acquire(me).unwrap();
+    /// let refusal = b.try_acquire(me).unwrap_err().to_string();
+    /// assert!(refusal.contains("client 192.0.2.7 holds 1 of the server's 2 streams"), "{refusal}");
+    /// ```
+    pub fn new(units: &'static str, flag: &'static str, size: usize, share: usize) -> FairBudget {
         let size = size.clamp(1, Semaphore::MAX_PERMITS);
         FairBudget {
             total: Arc::new(Semaphore::new(size)),
@@ -183,27 +194,8 @@ impl FairBudget {
                 held: Mutex::new(HashMap::new()),
             }),
             size,
-            name: BudgetName {
-                units: "units",
-                flag: "its flag",
-            },
+            name: BudgetName { units, flag },
         }
-    }
-
-    /// The budget, its refusals saying that it counts `units` (plural, e.g.
-    /// `"computations on the compute pool"`) and is sized by `flag`.
-    ///
-    /// ```
-    /// use kinserve::compute::{ClientId, FairBudget};
-    /// let b = FairBudget::new(2, 1).named("streams", "--max-streams");
-    /// let me = ClientId::from_ip("192.0.2.7".parse().unwrap());
-    /// let _held = b.try_acquire(me).unwrap();
-    /// let refusal = b.try_acquire(me).unwrap_err().to_string();
-    /// assert!(refusal.contains("client 192.0.2.7 holds 1 of the server's 2 streams"), "{refusal}");
-    /// ```
-    pub fn named(mut self, units: &'static str, flag: &'static str) -> FairBudget {
-        self.name = BudgetName { units, flag };
-        self
     }
 
     /// The refusal of a client holding its share.
@@ -213,7 +205,7 @@ impl FairBudget {
             detail: format!(
                 "client {client} holds {} of the server's {} {units}, its share \
                  (--client-share-percent of {flag}): wait until one has ended, \
-                 or retry after Retry-After",
+                 or retry in a second",
                 self.shares.share, self.size
             ),
         }
@@ -224,7 +216,7 @@ impl FairBudget {
         let BudgetName { units, flag } = self.name;
         Error::Overloaded {
             detail: format!(
-                "all {} of the server's {units} are taken ({flag}): retry after Retry-After",
+                "all {} of the server's {units} are taken ({flag}): retry in a second",
                 self.size
             ),
         }
@@ -308,8 +300,12 @@ impl ComputePool {
     /// `share` of them for one client.
     pub fn new(permits: usize, share: usize) -> ComputePool {
         ComputePool {
-            permits: FairBudget::new(permits, share)
-                .named("computations on the compute pool", "--compute-threads"),
+            permits: FairBudget::new(
+                "computations on the compute pool",
+                "--compute-threads",
+                permits,
+                share,
+            ),
         }
     }
 
@@ -378,7 +374,7 @@ mod tests {
 
     #[test]
     fn one_client_holds_at_most_its_share() {
-        let b = FairBudget::new(4, 2);
+        let b = FairBudget::new("units", "--test", 4, 2);
         let a1 = b.try_acquire(ip("127.0.0.1")).unwrap();
         let _a2 = b.try_acquire(ip("127.0.0.1")).unwrap();
         assert!(b.try_acquire(ip("127.0.0.1")).is_err(), "past the share");
@@ -396,7 +392,7 @@ mod tests {
 
     #[tokio::test]
     async fn a_share_of_the_whole_budget_waits_for_a_unit_instead_of_refusing() {
-        let b = FairBudget::new(2, 2);
+        let b = FairBudget::new("units", "--test", 2, 2);
         let me = ip("127.0.0.1");
         let first = b.acquire(me).await.unwrap();
         let _second = b.acquire(me).await.unwrap();
@@ -413,7 +409,7 @@ mod tests {
         drop(first);
         assert!(third.await.unwrap().is_ok());
         // Below 100 %, a client at its share is refused at once.
-        let half = FairBudget::new(2, 1);
+        let half = FairBudget::new("units", "--test", 2, 1);
         let _mine = half.acquire(me).await.unwrap();
         assert!(half.acquire(me).await.is_err());
     }

@@ -147,10 +147,11 @@ impl App {
             );
         }
         let permits = FairBudget::new(
+            "requests in flight",
+            "--max-concurrent-requests",
             config.max_concurrent_requests,
             share_of(config.max_concurrent_requests, config.client_share_percent),
-        )
-        .named("requests in flight", "--max-concurrent-requests");
+        );
         let streams = config.stream_budget();
         let request_bytes = config.request_byte_budget();
         let connections = ConnectionSlots::new(config.max_connections);

@@ -130,7 +130,7 @@ impl StreamBudget {
     /// (at least one) on any connection and `per_client` on any client's.
     pub fn new(total: usize, per_connection: usize, per_client: usize) -> StreamBudget {
         StreamBudget {
-            total: FairBudget::new(total, per_client).named("streams", "--max-streams"),
+            total: FairBudget::new("streams", "--max-streams", total, per_client),
             per_connection: per_connection.max(1),
         }
     }
@@ -182,7 +182,7 @@ impl StreamBudget {
 pub fn request_bytes_refusal() -> Error {
     Error::Overloaded {
         detail: "the server's buffer for request bodies is full \
-                 (--max-buffered-request-bytes): retry after Retry-After"
+                 (--max-buffered-request-bytes): retry in a second"
             .into(),
     }
 }
@@ -191,7 +191,7 @@ pub fn request_bytes_refusal() -> Error {
 pub fn response_bytes_refusal() -> Error {
     Error::Overloaded {
         detail: "the server's buffer for answers is full \
-                 (--max-buffered-response-bytes): retry after Retry-After"
+                 (--max-buffered-response-bytes): retry in a second"
             .into(),
     }
 }

@@ -1,11 +1,11 @@
 //! The playground and the compute pool's per-client share. On a two-core
 //! server one client (an IP address) holds one computation at a time and a
-//! second is refused at once (503 + Retry-After), so the page sends its
-//! compute requests (batches, IK, paths, closed forms, URDF imports) one at a
-//! time, and retries a refusal after Retry-After. What the page fetched is read
-//! from the browser's resource timing (every response status, page load
-//! included). Headless Chromium, as `browser.rs` (SKIPPED without it, failing
-//! under `CI=true`).
+//! second is refused at once (503 `overloaded` + Retry-After), so the page
+//! sends its compute requests (batches, IK, paths, closed forms, URDF
+//! imports) one at a time, and retries such a refusal after Retry-After.
+//! What the page fetched is read from the browser's resource timing (every
+//! response status, page load included). Headless Chromium, as `browser.rs`
+//! (SKIPPED without it, failing under `CI=true`).
 
 use std::time::{Duration, Instant};
 
@@ -131,7 +131,9 @@ async fn a_refused_compute_request_is_retried_after_retry_after() {
     // tells when it runs (the probe is refused); a batch that came while a
     // probe held the share was refused itself, and is sent again.
     let far = json!({"position": [3.0, 0.0, 0.2]});
-    let hold_body = json!({"targets": vec![far; 2000], "position_only": true, "solver": "numeric"});
+    // 10,000 (the most a batch takes): even a release build's batch outlasts its 1.5 s.
+    let hold_body =
+        json!({"targets": vec![far; 10_000], "position_only": true, "solver": "numeric"});
     let client = reqwest::Client::new();
     let url = format!("{}/v1/robots/ur5e/ik/batch", app.http);
     let send_hold = || {

@@ -70,13 +70,14 @@ impl AppState {
             request: inner.request_bytes.clone(),
             response: ByteBudget::new(inner.settings.max_buffered_response_bytes),
             batch_slots: FairBudget::new(
+                "batch requests under way",
+                "--max-concurrent-batches",
                 inner.settings.max_concurrent_batches,
                 share_of(
                     inner.settings.max_concurrent_batches,
                     inner.settings.client_share_percent,
                 ),
-            )
-            .named("batch requests under way", "--max-concurrent-batches"),
+            ),
         };
         AppState(Arc::new(Shared { inner, budgets }))
     }

@@ -185,9 +185,9 @@ fn problem_example(code: &str) -> Option<Value> {
             return serde_json::to_value(p).ok();
         }
         "503" => Error::Overloaded {
-            detail: "client 203.0.113.9 holds 1 of the server's 2 computations on the compute \
-                     pool, its share (--client-share-percent of --compute-threads): wait until \
-                     one has ended, or retry after Retry-After"
+            detail: "client 203.0.113.9 holds 512 of the server's 1024 requests in flight, its \
+                     share (--client-share-percent of --max-concurrent-requests): wait until one \
+                     has ended, or retry in a second"
                 .into(),
         },
         "507" => Error::Storage {

@@ -344,7 +344,12 @@ async fn a_panicking_handler_is_a_500_problem_and_the_server_survives() {
         settings: config.rest_settings(),
         shutdown: tokio_util::sync::CancellationToken::new(),
         metrics: kinserve::telemetry::metrics_handle(),
-        permits: kinserve::compute::FairBudget::new(1, 1),
+        permits: kinserve::compute::FairBudget::new(
+            "requests in flight",
+            "--max-concurrent-requests",
+            1,
+            1,
+        ),
         streams: config.stream_budget(),
         request_bytes: config.request_byte_budget(),
     });

@@ -359,7 +359,7 @@ async fn websockets_past_the_stream_budget_get_503_before_the_upgrade() {
     assert_eq!(
         body["detail"],
         "server overloaded: all 3 of the server's streams are taken (--max-streams): \
-         retry after Retry-After",
+         retry in a second",
         "the refusal names the budget and its flag"
     );
     assert_eq!(probe_stream(&app.grpc).await, Err(Code::ResourceExhausted));

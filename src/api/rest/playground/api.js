@@ -66,13 +66,16 @@ async function request(method, path, { body, headers = {}, signal } = {}) {
 
 // ------------------------------------------------------- compute requests --
 // The server runs batches, IK, closed forms and URDF imports on a compute pool
-// of which one client (an IP address) holds at most a share — on a two-core
-// server, one computation — and refuses past it at once (503 + Retry-After).
-// So the page sends those requests one at a time (its own requests never
-// refuse each other), and a refusal (another tab at the same address, or this
-// page's WebSocket IK holding the share) is retried after Retry-After, up to
-// POOL_RETRIES times.
+// of which one client (an IP address) holds at most a share — with the
+// defaults on a server of up to four cores, one computation — and refuses past
+// it at once (503 `overloaded` + Retry-After). So the page sends those
+// requests one at a time (its own requests never refuse each other), and such
+// a refusal (another tab at the same address, or this page's WebSocket IK
+// holding the share) is retried after Retry-After, up to POOL_RETRIES times.
+// Other 503s (a timeout, shutting down) are not retried. A request whose
+// signal aborts leaves the lane at once.
 const POOL_RETRIES = 4;
+const OVERLOADED = 'urn:kinserve:problem:overloaded';
 let poolLane = Promise.resolve();
 
 /** Retry-After (seconds) as a wait in ms: 1 s when absent, at most 5 s. */
@@ -81,34 +84,43 @@ function retryAfterMs(header) {
   return header !== null && Number.isFinite(s) && s >= 0 ? Math.min(s, 5) * 1000 : 1000;
 }
 
-function pause(ms, signal) {
+const abortError = () => new DOMException('Aborted', 'AbortError');
+
+/** `promise`, or a rejection as soon as `signal` aborts. */
+function unlessAborted(promise, signal) {
+  if (!signal) return promise;
+  if (signal.aborted) return Promise.reject(abortError());
   return new Promise((resolve, reject) => {
-    if (signal && signal.aborted) return reject(new DOMException('Aborted', 'AbortError'));
-    const t = setTimeout(resolve, ms);
-    if (signal) {
-      signal.addEventListener('abort', () => {
-        clearTimeout(t);
-        reject(new DOMException('Aborted', 'AbortError'));
-      }, { once: true });
-    }
+    const onAbort = () => reject(abortError());
+    signal.addEventListener('abort', onAbort, { once: true });
+    const done = () => signal.removeEventListener('abort', onAbort);
+    promise.then(
+      (v) => { done(); resolve(v); },
+      (e) => { done(); reject(e); },
+    );
   });
 }
 
-/** `request` on the page's compute lane: after the one before it, retried on 503. */
+const pause = (ms, signal) => unlessAborted(new Promise((resolve) => setTimeout(resolve, ms)), signal);
+
+/** `request` on the page's compute lane: after the one before it, an overload retried. */
 function pooled(method, path, opts = {}) {
+  const { signal } = opts;
   const task = async () => {
     for (let attempt = 0; ; attempt += 1) {
+      if (signal && signal.aborted) throw abortError();
       try {
         return await request(method, path, opts);
       } catch (err) {
-        if (!(err instanceof ApiError) || err.status !== 503 || attempt >= POOL_RETRIES) throw err;
-        await pause(err.retryAfterMs, opts.signal);
+        const refused = err instanceof ApiError && err.problem.type === OVERLOADED;
+        if (!refused || attempt >= POOL_RETRIES) throw err;
+        await pause(err.retryAfterMs, signal);
       }
     }
   };
   const run = poolLane.then(task, task);
   poolLane = run.catch(() => undefined);
-  return run;
+  return unlessAborted(run, signal);
 }
 
 const robotPath = (name) => `/v1/robots/${encodeURIComponent(name)}`;

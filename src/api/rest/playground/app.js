@@ -23,6 +23,7 @@ const state = {
   values: [],
   stream: null,
   gen: 0, // robot selection generation
+  selection: null, // AbortController of the requests made for the selected robot
   wsGen: 0, // workspace run generation
   fkCount: 0,
   ikCount: 0,
@@ -237,6 +238,9 @@ function baseOriginOf(model) {
 
 async function selectRobot(name) {
   const gen = ++state.gen;
+  if (state.selection) state.selection.abort();
+  state.selection = new AbortController();
+  const { signal } = state.selection;
   state.wsGen++;
   if (state.stream) state.stream.close();
   state.stream = null;
@@ -266,7 +270,7 @@ async function selectRobot(name) {
 
   renderSummary(model);
   renderDhTable(model);
-  showClosedForm(name, () => gen === state.gen);
+  showClosedForm(name, () => gen === state.gen, signal);
   renderSliders();
   for (const t of ikTools) t.setRobot(name, state.robots.find((r) => String(r.name) === name), model);
   clearPose(model);
@@ -278,7 +282,7 @@ async function selectRobot(name) {
   state.maxManip = 0;
   state.manipRef = 0;
   delete $('manip').dataset.reference;
-  loadManipReference(name, gen);
+  loadManipReference(name, gen, signal);
   showIkStatus('');
   state.stream = new FkStream(name, {
     onReply: (msg, joints) => {
@@ -516,7 +520,7 @@ function showIkStatus(text, kind) {
  * within the joint limits (fixed seed), so a reading says how far the arm is
  * from its best, not from the best seen so far.
  */
-async function loadManipReference(name, gen) {
+async function loadManipReference(name, gen, signal) {
   let seed = 12345;
   const rand = () => {
     seed = (seed * 1103515245 + 12345) % 2147483648;
@@ -524,7 +528,7 @@ async function loadManipReference(name, gen) {
   };
   const configs = Array.from({ length: 64 }, () => state.joints.map((j) => j.lo + (j.hi - j.lo) * rand()));
   try {
-    const out = await jacobianBatch(name, configs);
+    const out = await jacobianBatch(name, configs, signal);
     if (gen !== state.gen) return;
     const ms = (out.results || []).map((r) => Number(r.manipulability)).filter(Number.isFinite);
     state.manipRef = ms.length ? Math.max(...ms) : 0;

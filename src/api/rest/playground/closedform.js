@@ -42,15 +42,18 @@ function sub(i) {
   return String(i).split('').map((d) => '₀₁₂₃₄₅₆₇₈₉'[Number(d)]).join('');
 }
 
-/** Fills the panel for robot `name`; `isCurrent()` says whether it is still selected. */
-export async function showClosedForm(name, isCurrent) {
+/**
+ * Fills the panel for robot `name`; `isCurrent()` says whether it is still
+ * selected, `signal` (optional) aborts the request when it no longer is.
+ */
+export async function showClosedForm(name, isCurrent, signal) {
   const box = document.getElementById('closed-form');
   const status = document.getElementById('closed-form-status');
   box.replaceChildren();
   status.textContent = 'Loading…';
   let cf;
   try {
-    cf = await closedForm(name);
+    cf = await closedForm(name, signal);
   } catch (err) {
     if (isCurrent()) status.textContent = `No closed form: ${problemText(err)}`;
     return;
