@@ -189,7 +189,12 @@ def raise_for(r: httpx.Response) -> None:
         body = r.json()
     except ValueError:
         body = None
-    raise error_from_problem(r.status_code, body, r.reason_phrase or str(r.status_code))
+    err = error_from_problem(r.status_code, body, r.reason_phrase or str(r.status_code))
+    try:
+        err.retry_after = float(r.headers["Retry-After"])
+    except (KeyError, ValueError):
+        pass
+    raise err
 
 
 def _json(r: httpx.Response) -> Any:

@@ -10,8 +10,10 @@ execution; depends on every other module of the package.
 
 from __future__ import annotations
 
+import asyncio
 import functools
 import os
+import time
 from typing import (
     Any,
     AsyncIterator,
@@ -33,6 +35,7 @@ from ._calls import Call, GrpcCall, RestCall
 from ._grpc import GrpcOps, method_path
 from ._pbconv import error_from_status
 from ._rest import RestOps, raise_for
+from .errors import KinserveError
 from .stream import Stream, open_stream
 from .types import JSON, AngleUnit, PoseFormat, Registered, RobotSummary, Transport
 
@@ -66,6 +69,21 @@ def grpc_error(e: grpc.RpcError) -> Exception:
     code = e.code() if hasattr(e, "code") else grpc.StatusCode.UNKNOWN
     details = e.details() if hasattr(e, "details") else str(e)
     return error_from_status(code.name, details or "", _status_bin(e))
+
+
+#: How long to wait before sending a refused request again when the server
+#: did not say (gRPC carries no Retry-After; the server's is 1 s).
+DEFAULT_RETRY_AFTER = 1.0
+#: The longest wait between attempts, whatever the server asks.
+MAX_RETRY_AFTER = 5.0
+
+
+def _retry_delay(e: KinserveError, attempt: int, retries: int) -> float | None:
+    """Seconds to wait before attempt ``attempt + 1``, or ``None`` to raise ``e``."""
+    if not e.refused or attempt >= retries:
+        return None
+    wait = DEFAULT_RETRY_AFTER if e.retry_after is None else e.retry_after
+    return min(max(wait, 0.0), MAX_RETRY_AFTER)
 
 
 def _serialize(request: Any) -> bytes:
@@ -103,12 +121,16 @@ class _Base:
         transport: Transport,
         token: str | None,
         timeout: float,
+        retries: int,
     ) -> None:
         if transport not in ("rest", "grpc"):
             raise ValueError(f"transport is 'rest' or 'grpc', got {transport!r}")
+        if retries < 0:
+            raise ValueError(f"retries is 0 or more, got {retries}")
         self.address = address.rstrip("/")
         self.transport: Transport = transport
         self.timeout = timeout
+        self.retries = retries
         self._token = token
         self._ops: Any = RestOps() if transport == "rest" else GrpcOps()
         self._headers = {} if token is None else {"Authorization": f"Bearer {token}"}
@@ -123,8 +145,12 @@ class Client(_Base):
     ``Client("http://127.0.0.1:8080")`` speaks REST; ``Client("127.0.0.1:50051",
     transport="grpc")`` speaks gRPC; the methods and their answers are the
     same. ``token`` is the server's API token (needed to register and delete
-    when the server has one). Use it as a context manager or call
-    :meth:`close`.
+    when the server has one). A request the server refused before doing
+    anything (``overloaded``: it is busy, or this client holds its share of
+    it) is sent again up to ``retries`` times, after the ``Retry-After`` the
+    server asked for (1 s over gRPC, at most 5 s); past that the
+    :class:`~kinserve_client.errors.ResourceExhausted` is raised. Use it as a
+    context manager or call :meth:`close`.
 
     >>> with Client(BASE) as c:  # doctest: +SKIP
     ...     c.fk("planar_2dof", [0.5, 0.1]).transform[:3, 3]
@@ -137,8 +163,9 @@ class Client(_Base):
         transport: Transport = "rest",
         token: str | None = None,
         timeout: float = 30.0,
+        retries: int = 3,
     ) -> None:
-        super().__init__(address, transport, token, timeout)
+        super().__init__(address, transport, token, timeout, retries)
         self._http: httpx.Client | None = None
         self._channel: grpc.Channel | None = None
         if transport == "rest":
@@ -160,6 +187,18 @@ class Client(_Base):
         self.close()
 
     def _run(self, call: Call[R]) -> R:
+        attempt = 0
+        while True:
+            try:
+                return self._run_once(call)
+            except KinserveError as e:
+                wait = _retry_delay(e, attempt, self.retries)
+                if wait is None:
+                    raise
+            time.sleep(wait)
+            attempt += 1
+
+    def _run_once(self, call: Call[R]) -> R:
         if isinstance(call, RestCall):
             assert self._http is not None
             r = self._http.request(
@@ -233,8 +272,9 @@ class AsyncClient(_Base):
         transport: Transport = "rest",
         token: str | None = None,
         timeout: float = 30.0,
+        retries: int = 3,
     ) -> None:
-        super().__init__(address, transport, token, timeout)
+        super().__init__(address, transport, token, timeout, retries)
         self._http: httpx.AsyncClient | None = None
         self._channel: grpc.aio.Channel | None = None
         if transport == "rest":
@@ -260,6 +300,18 @@ class AsyncClient(_Base):
         await self.close()
 
     async def _run(self, call: Call[R]) -> R:
+        attempt = 0
+        while True:
+            try:
+                return await self._run_once(call)
+            except KinserveError as e:
+                wait = _retry_delay(e, attempt, self.retries)
+                if wait is None:
+                    raise
+            await asyncio.sleep(wait)
+            attempt += 1
+
+    async def _run_once(self, call: Call[R]) -> R:
         if isinstance(call, RestCall):
             assert self._http is not None
             r = await self._http.request(

@@ -56,6 +56,8 @@ class KinserveError(Exception):
         status: the HTTP status (REST's; over gRPC the one REST gives that kind).
         best_attempt: with ``ik-not-converged``, the best attempt as an
             :class:`~kinserve_client.types.IkResult`.
+        retry_after: seconds the server asked to wait before trying again
+            (REST's ``Retry-After``); ``None`` when it did not say.
     """
 
     def __init__(
@@ -69,6 +71,7 @@ class KinserveError(Exception):
         fields: Mapping[str, str] | None = None,
         best_attempt: Any = None,
         transport: str = "rest",
+        retry_after: float | None = None,
     ) -> None:
         super().__init__(detail)
         self.code = code
@@ -79,6 +82,14 @@ class KinserveError(Exception):
         self.fields: dict[str, str] = dict(fields or {})
         self.best_attempt = best_attempt
         self.transport = transport
+        self.retry_after = retry_after
+
+    @property
+    def refused(self) -> bool:
+        """Whether the server refused the request before doing anything
+        (``overloaded``: a budget spent, or the client holding its share of
+        it), so that sending it again is safe whatever it asks."""
+        return self.kind == "overloaded"
 
     @property
     def kind(self) -> str | None:
