@@ -19,8 +19,10 @@ export class KinserveError extends Error {
   readonly fields: Record<string, string>;
   /** The problem document itself (with `best_attempt` for `ik-not-converged`). */
   readonly problem: Problem;
+  /** Seconds the server asked to wait before trying again (`Retry-After`), when it said. */
+  readonly retryAfter: number | undefined;
 
-  constructor(problem: Problem) {
+  constructor(problem: Problem, retryAfter?: number) {
     super(problem.detail);
     this.name = "KinserveError";
     this.type = problem.type;
@@ -29,6 +31,16 @@ export class KinserveError extends Error {
     this.detail = problem.detail;
     this.fields = Object.fromEntries((problem.errors ?? []).map((e) => [e.field, e.message]));
     this.problem = problem;
+    this.retryAfter = retryAfter;
+  }
+
+  /**
+   * Whether the server refused the request before doing anything
+   * (`overloaded`: a budget spent, or this client holding its share of it),
+   * so that sending it again is safe whatever it asks.
+   */
+  get refused(): boolean {
+    return this.kind === "overloaded";
   }
 
   /** The problem kind: the end of `type` (`invalid-input`, `not-found`, ...). */

@@ -45,7 +45,17 @@ export interface ClientOptions {
   token?: string;
   /** The fetch implementation (default: the platform's). */
   fetch?: typeof fetch;
+  /**
+   * How many times a request the server refused before doing anything
+   * (`overloaded`: 503 + `Retry-After`; it is busy, or this client holds its
+   * share of it) is sent again, after the wait the server asks for (at most
+   * 5 s). Default 3; 0 throws the refusal at once.
+   */
+  retries?: number;
 }
+
+/** The longest wait between attempts, whatever the server asks (s). */
+const MAX_RETRY_AFTER = 5;
 
 const URDF_IMPORT = "application/vnd.kinserve.urdf-import+json";
 
@@ -54,11 +64,13 @@ export class KinserveClient {
   readonly baseUrl: string;
   private readonly token: string | undefined;
   private readonly fetchImpl: typeof fetch;
+  private readonly retries: number;
 
   constructor(baseUrl: string, options: ClientOptions = {}) {
     this.baseUrl = baseUrl.replace(/\/+$/, "");
     this.token = options.token;
     this.fetchImpl = options.fetch ?? globalThis.fetch.bind(globalThis);
+    this.retries = Math.max(0, Math.floor(options.retries ?? 3));
   }
 
   private async request(method: string, path: string, init: { body?: unknown; contentType?: string; headers?: Record<string, string> } = {}): Promise<Response> {
@@ -69,9 +81,14 @@ export class KinserveClient {
       headers["content-type"] = init.contentType ?? "application/json";
       body = JSON.stringify(init.body);
     }
-    const response = await this.fetchImpl(this.baseUrl + path, { method, headers, body });
-    if (!response.ok) throw await errorOf(response);
-    return response;
+    for (let attempt = 0; ; attempt += 1) {
+      const response = await this.fetchImpl(this.baseUrl + path, { method, headers, body });
+      if (response.ok) return response;
+      const error = await errorOf(response);
+      if (!error.refused || attempt >= this.retries) throw error;
+      const wait = Math.min(Math.max(error.retryAfter ?? 1, 0), MAX_RETRY_AFTER);
+      await new Promise((resolve) => setTimeout(resolve, wait * 1000));
+    }
   }
 
   private async json<T>(method: string, path: string, body?: unknown): Promise<T> {
@@ -243,7 +260,8 @@ async function errorOf(response: Response): Promise<KinserveError> {
   } catch {
     body = undefined;
   }
-  if (isProblem(body)) return new KinserveError(body);
+  const retryAfter = Number(response.headers.get("retry-after") ?? Number.NaN);
+  if (isProblem(body)) return new KinserveError(body, Number.isFinite(retryAfter) ? retryAfter : undefined);
   return new KinserveError({
     type: "about:blank",
     title: response.statusText,

@@ -230,3 +230,53 @@ test("stream: an ik_path message is answered with the path", async () => {
   assert.equal(replyPath(await stream.next()), undefined, "an FK reply has no path");
   stream.close();
 });
+
+// The client's share of the compute pool held by other requests of this
+// address: IK batches of targets out of reach (8 at once: the whole share of
+// a server of up to 17 CPUs) whose callers give up after 2.5 s (the server
+// then stops them). Resolves once a probe of ours is refused.
+async function holdTheShare(): Promise<Promise<unknown>[]> {
+  const far = { position: [3.0, 0.0, 0.2] };
+  const body = JSON.stringify({ targets: Array(10_000).fill(far), position_only: true, solver: "numeric" });
+  const probe = { target: { position: [0.4, 0.1, 0.4] }, position_only: true };
+  const deadline = Date.now() + 30_000;
+  for (;;) {
+    const holds = Array.from({ length: 8 }, () =>
+      fetch(`${BASE}/v1/robots/ur5e/ik/batch`, {
+        method: "POST",
+        headers: { "content-type": "application/json" },
+        body,
+        signal: AbortSignal.timeout(2500),
+      }).then((r) => r.arrayBuffer(), () => undefined),
+    );
+    await new Promise((resolve) => setTimeout(resolve, 300));
+    const r = await fetch(`${BASE}/v1/robots/ur5e/ik`, { method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(probe) });
+    await r.arrayBuffer();
+    if (r.status === 503) return holds;
+    await Promise.all(holds); // not started yet, or refused by a probe: again
+    assert.ok(Date.now() < deadline, "the holds never took the share");
+  }
+}
+
+test("a request refused before doing anything is sent again after Retry-After; retries: 0 throws it", async () => {
+  const body = { target: { position: [0.4, 0.1, 0.4] }, position_only: true };
+  let holds = await holdTheShare();
+  const eager = new KinserveClient(BASE, { retries: 0 });
+  const refused = await eager.ik("ur5e", body).then(
+    () => undefined,
+    (e: unknown) => e,
+  );
+  assert.ok(refused instanceof KinserveError, String(refused));
+  assert.ok(refused.refused && refused.kind === "overloaded" && refused.status === 503, refused.detail);
+  assert.equal(refused.retryAfter, 1);
+  assert.match(refused.detail, /holds .*--client-share-percent/);
+  await Promise.all(holds);
+
+  holds = await holdTheShare();
+  const patient = new KinserveClient(BASE, { retries: 6 });
+  const start = Date.now();
+  const answer = await patient.ik("ur5e", body);
+  assert.equal(answer.converged, true);
+  assert.ok(Date.now() - start >= 900, "answered only after waiting at least once");
+  await Promise.all(holds);
+});
