@@ -160,6 +160,26 @@ pub enum Error {
 }
 
 impl Error {
+    /// How long the client should wait before sending the request again,
+    /// for the errors after which it may: REST's `Retry-After` header and
+    /// gRPC's `google.rpc.RetryInfo` detail say the same.
+    ///
+    /// ```
+    /// use kinserve::error::Error;
+    /// let busy = Error::Overloaded { detail: "all 2 streams are open".into() };
+    /// assert_eq!(busy.retry_after(), Some(std::time::Duration::from_secs(1)));
+    /// assert_eq!(Error::Unauthenticated.retry_after(), None);
+    /// ```
+    pub fn retry_after(&self) -> Option<std::time::Duration> {
+        match self {
+            Error::Overloaded { .. } | Error::Unavailable { .. } => {
+                Some(std::time::Duration::from_secs(1))
+            }
+            Error::StoreUnavailable { .. } => Some(std::time::Duration::from_secs(2)),
+            _ => None,
+        }
+    }
+
     /// The problem kind: REST's `urn:kinserve:problem:<kind>` and, in
     /// SCREAMING_SNAKE (`invalid-input` -> `INVALID_INPUT`), the `reason` of
     /// the `google.rpc.ErrorInfo` every gRPC error status carries, so that

@@ -76,5 +76,4 @@ def test_without_retries_the_refusal_is_raised(
     e = caught.value
     assert e.refused and e.kind == "overloaded", repr(e)
     assert "holds" in e.detail and "--client-share-percent" in e.detail, e.detail
-    if transport == "rest":
-        assert e.status == 503 and e.retry_after == 1.0, repr(e)
+    assert e.status == 503 and e.retry_after == 1.0, repr(e)

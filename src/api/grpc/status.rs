@@ -88,7 +88,8 @@ fn ik_not_converged(code: Code, message: String, best: &crate::model::IkAnswer) 
 }
 
 /// The status for an error: `google.rpc.ErrorInfo` always, field violations
-/// as `google.rpc.BadRequest`.
+/// as `google.rpc.BadRequest`, and `google.rpc.RetryInfo` when the client may
+/// send the request again ([`Error::retry_after`], REST's `Retry-After`).
 pub fn to_status(e: &Error) -> Status {
     let code = code_of(e);
     if let Error::IkNotConverged { best, .. } = e {
@@ -110,6 +111,9 @@ pub fn to_status(e: &Error) -> Status {
     details.set_error_info(reason_of(e), ERROR_DOMAIN, std::collections::HashMap::new());
     for (field, message) in fields {
         details.add_bad_request_violation(field, message);
+    }
+    if let Some(wait) = e.retry_after() {
+        details.set_retry_info(Some(wait));
     }
     Status::with_error_details(code, e.to_string(), details)
 }

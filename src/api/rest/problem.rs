@@ -154,17 +154,11 @@ impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let mut resp = Problem::from_error(&self.0).into_response();
         let h = resp.headers_mut();
-        match &self.0 {
-            Error::Unauthenticated => {
-                h.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
-            }
-            Error::Overloaded { .. } | Error::Unavailable { .. } => {
-                h.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
-            }
-            Error::StoreUnavailable { .. } => {
-                h.insert(header::RETRY_AFTER, HeaderValue::from_static("2"));
-            }
-            _ => {}
+        if matches!(self.0, Error::Unauthenticated) {
+            h.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        if let Some(wait) = self.0.retry_after() {
+            h.insert(header::RETRY_AFTER, HeaderValue::from(wait.as_secs()));
         }
         resp
     }

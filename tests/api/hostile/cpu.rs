@@ -380,6 +380,12 @@ async fn a_client_holding_its_compute_share_is_refused_at_once_and_another_is_se
     ] {
         assert!(why.contains(part), "{why:?} says {part:?}");
     }
+    // … and how long to wait: google.rpc.RetryInfo, REST's Retry-After.
+    use tonic_types::StatusExt;
+    let retry = refused
+        .get_details_retry_info()
+        .expect("a RetryInfo detail");
+    assert_eq!(retry.retry_delay, Some(Duration::from_secs(1)));
     // … while another client's batch is computed.
     let mut other = grpc_from(WITNESS_ADDR, &app.grpc).await;
     let q = kinserve::api::grpc::pb::JointConfiguration {

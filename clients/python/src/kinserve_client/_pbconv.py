@@ -299,12 +299,14 @@ IK_RESULT_TYPE = "type.googleapis.com/kinematics.v1.InverseKinematicsResult"
 
 def error_from_status(code: str, message: str, status_bin: bytes | None) -> errors.KinserveError:
     """The exception for a gRPC error status (``grpc-status-details-bin``:
-    ``google.rpc.Status`` with BadRequest / ErrorInfo / the IK best attempt)."""
+    ``google.rpc.Status`` with BadRequest / ErrorInfo / RetryInfo / the IK best
+    attempt)."""
     from google.rpc import error_details_pb2, status_pb2
 
     fields: dict[str, str] = {}
     kind = errors.kind_of_code(code)
     best: IkResult | None = None
+    retry_after: float | None = None
     if status_bin:
         status = status_pb2.Status.FromString(status_bin)
         message = status.message or message
@@ -318,9 +320,13 @@ def error_from_status(code: str, message: str, status_bin: bytes | None) -> erro
                 any_.Unpack(info)
                 if info.domain == "kinserve" and info.reason:
                     kind = info.reason.lower().replace("_", "-")
+            elif any_.Is(error_details_pb2.RetryInfo.DESCRIPTOR):
+                retry = error_details_pb2.RetryInfo()
+                any_.Unpack(retry)
+                retry_after = retry.retry_delay.ToTimedelta().total_seconds()
             elif any_.type_url == IK_RESULT_TYPE:
                 best = ik_result(pb.InverseKinematicsResult.FromString(any_.value))
-    return errors.make_error(
+    err = errors.make_error(
         code=code,
         kind=kind,
         detail=message,
@@ -329,3 +335,5 @@ def error_from_status(code: str, message: str, status_bin: bytes | None) -> erro
         best_attempt=best,
         transport="grpc",
     )
+    err.retry_after = retry_after
+    return err

@@ -72,7 +72,7 @@ def grpc_error(e: grpc.RpcError) -> Exception:
 
 
 #: How long to wait before sending a refused request again when the server
-#: did not say (gRPC carries no Retry-After; the server's is 1 s).
+#: did not say (it does: REST's Retry-After, gRPC's google.rpc.RetryInfo).
 DEFAULT_RETRY_AFTER = 1.0
 #: The longest wait between attempts, whatever the server asks.
 MAX_RETRY_AFTER = 5.0
@@ -148,7 +148,7 @@ class Client(_Base):
     when the server has one). A request the server refused before doing
     anything (``overloaded``: it is busy, or this client holds its share of
     it) is sent again up to ``retries`` times, after the ``Retry-After`` the
-    server asked for (1 s over gRPC, at most 5 s); past that the
+    server asked for (``Retry-After``, gRPC's ``RetryInfo``; at most 5 s); past that the
     :class:`~kinserve_client.errors.ResourceExhausted` is raised. Use it as a
     context manager or call :meth:`close`.
 

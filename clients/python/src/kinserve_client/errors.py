@@ -57,7 +57,8 @@ class KinserveError(Exception):
         best_attempt: with ``ik-not-converged``, the best attempt as an
             :class:`~kinserve_client.types.IkResult`.
         retry_after: seconds the server asked to wait before trying again
-            (REST's ``Retry-After``); ``None`` when it did not say.
+            (REST's ``Retry-After``, gRPC's ``google.rpc.RetryInfo``); ``None``
+            when it did not say.
     """
 
     def __init__(
