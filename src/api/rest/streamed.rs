@@ -60,6 +60,12 @@ pub fn estimated_bytes(format: PoseFormat, n: usize) -> usize {
     n.saturating_mul(per_pose)
 }
 
+/// Bytes reserved for a whole answer of `n` poses in `format` written at
+/// once: [`estimated_bytes`] and the fields around the poses.
+pub fn answer_capacity(format: PoseFormat, n: usize) -> usize {
+    estimated_bytes(format, n).saturating_add(128)
+}
+
 /// The 200 answer to a batch: serialised at once when small, streamed (see
 /// the module documentation) when [`estimated_bytes`] reaches
 /// [`STREAM_FROM_BYTES`].
@@ -72,7 +78,7 @@ pub fn batch_answer(
     let whole = FkBatchResponse::new(robot, length_unit, format, &poses);
     let estimate = estimated_bytes(format, poses.len());
     if estimate < STREAM_FROM_BYTES {
-        return json_bytes(&whole, estimate + 128).map(json_answer);
+        return json_bytes(&whole, answer_capacity(format, poses.len())).map(json_answer);
     }
     let empty = FkBatchResponse::new(robot, length_unit, format, &[]);
     let shell = json_bytes(&empty, 256)?;

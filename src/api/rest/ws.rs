@@ -334,7 +334,7 @@ fn ok_reply(id: &serde_json::Value, length_unit: LengthUnit, answer: &StreamAnsw
     let capacity = match answer {
         // As the REST batch answer reserves it.
         StreamAnswer::FkBatch { poses, pose_format } => {
-            super::streamed::estimated_bytes(*pose_format, poses.len()).saturating_add(128)
+            super::streamed::answer_capacity(*pose_format, poses.len())
         }
         _ => REPLY_CAPACITY,
     };
