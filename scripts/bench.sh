@@ -5,6 +5,7 @@
 #   WRK_ROUNDS=5 scripts/bench.sh     # alternating /healthz–FK wrk pairs behind the REST ratio (3)
 #   TLS_ROUNDS=5 scripts/bench.sh     # alternating plain–TLS rounds behind the TLS ratios (3)
 #   TLS_ONLY=1 scripts/bench.sh       # only the TLS-vs-plain comparison (issue 27)
+#   PER_MESSAGE=64 scripts/bench.sh   # configurations per stream message in the grouped stream rows (16)
 # Builds in release, starts kinserve on loopback with a temporary data dir, runs
 # kinserve-load for every target, wrk against REST FK and /healthz when wrk is
 # installed (Debian: apt-get install wrk), and records the server's RSS
@@ -176,6 +177,19 @@ rest16=$(rate --target rest --concurrency 16 "${fmt16[@]}")
 grpc_stream16=$(rate --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}")
 ws16=$(rate --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}")
 echo "grpc-health $grpc_health16 req/s; rest ($f16) $rest16 poses/s; grpc-stream ($f16) $grpc_stream16 poses/s; ws ($f16) $ws16 poses/s"
+# The same streams with PER_MESSAGE configurations per message
+# (`configurations`, answered with as many poses): what a client that can
+# group its configurations gets (reported beside the per-message ratio).
+PER_MESSAGE=${PER_MESSAGE:-16}
+per_message=(); "$BIN_DIR/kinserve-load" --help | grep -q -- --per-message && per_message=(--per-message "$PER_MESSAGE")
+if [ ${#per_message[@]} -gt 0 ]; then
+  grpc_stream16_many=$(rate --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
+  ws16_many=$(rate --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
+  echo "$PER_MESSAGE configurations per message: grpc-stream ($f16) $grpc_stream16_many poses/s; ws ($f16) $ws16_many poses/s"
+else
+  grpc_stream16_many=nan; ws16_many=nan
+  echo "kinserve-load has no --per-message: the rows of many configurations per message are skipped"
+fi
 
 if command -v wrk >/dev/null; then
   echo
@@ -219,7 +233,7 @@ echo
 echo "# issue-15 and issue-28 targets (this run)"
 python3 - "${wrk_pairs:-}" "${batch_us[rest-batch.$f16]}" "${batch_us[grpc-batch.$f16]}" \
   "$grpc_health16" "$rest16" "$grpc_stream16" "$ws16" "$((idle_rss / 1024))" "$((peak_rss / 1024))" "$f16" "$core_batch_ns" \
-  "${batch_us[rest-batch-packed.$f16]}" <<'PY'
+  "${batch_us[rest-batch-packed.$f16]}" "$grpc_stream16_many" "$ws16_many" "$PER_MESSAGE" <<'PY'
 import sys
 a = sys.argv[1:]
 def ms(v):
@@ -241,6 +255,7 @@ gh, rest, gs, ws = (float(x) for x in a[3:7])
 idle, peak, fmt = int(a[7]), int(a[8]), a[9]
 core_ns = float(a[10])
 packed_us = float(a[11])
+gs_many, ws_many, per_message = float(a[12]), float(a[13]), a[14]
 rows = [
     ("REST FK / healthz req/s (wrk, 64 conn)", ">= 0.9", median(rate)),
     ("REST FK p99 / healthz p99 (wrk, 64 conn)", "<= 1.2", median(p99)),
@@ -248,6 +263,8 @@ rows = [
     (f"10,000-pose batch, {fmt}, gRPC µs/pose", "<= 0.4", f"{grpc_us:.3f}"),
     (f"gRPC stream ({fmt}, 16) / gRPC health (16)", ">= 20", f"{gs / gh:.1f}"),
     (f"WebSocket ({fmt}, 16) / REST FK (16)", ">= 8", f"{ws / rest:.1f}"),
+    (f"gRPC stream, {per_message} per message / health", "report", f"{gs_many / gh:.1f}"),
+    (f"WebSocket, {per_message} per message / REST FK", "report", f"{ws_many / rest:.1f}"),
     (f"gRPC 10k {fmt} batch / core batch, per pose", "<= 10", f"{grpc_us * 1000 / core_ns:.1f} (core {core_ns:.1f} ns)"),
     (f"REST 10k {fmt} batch / gRPC's, per pose", "<= 2.5", f"{rest_us / grpc_us:.2f}"),
     (f"REST 10k {fmt} batch packed / JSON, per pose", "report", f"{packed_us / rest_us:.2f}"),

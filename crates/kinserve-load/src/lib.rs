@@ -169,6 +169,12 @@ pub struct LoadArgs {
     /// Messages in flight per stream (ws, grpc-stream).
     #[arg(long, default_value_t = 32)]
     pub pipeline: usize,
+    /// Configurations per stream message (ws, grpc-stream). 1: `joints`, one
+    /// pose per message; more: `configurations`, answered with that many
+    /// poses in one reply (the batch route's `poses`/`matrices`/`positions`,
+    /// gRPC's `poses`/`packed_poses`).
+    #[arg(long, default_value_t = 1)]
+    pub per_message: usize,
     /// Seed of the random joint configurations (drawn within the joint limits).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -248,6 +254,8 @@ pub struct Report {
     pub verified: bool,
     /// Pose format asked for.
     pub pose_format: PoseFormat,
+    /// Configurations per stream message (`--per-message`; 1 elsewhere).
+    pub per_message: usize,
 }
 
 impl Report {
@@ -479,6 +487,16 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
             "--pipeline must be from 1 to {MAX_WORKERS} and --batch-size from 1 to {MAX_BATCH}"
         ));
     }
+    if !(1..=MAX_BATCH).contains(&args.per_message) {
+        return Err(format!("--per-message must be from 1 to {MAX_BATCH}"));
+    }
+    if args.per_message > 1 && !matches!(args.target, Target::Ws | Target::GrpcStream) {
+        return Err(format!(
+            "--per-message: only the stream targets (ws, grpc-stream) send several \
+             configurations per message, not {}; use --batch-size for the batch targets",
+            args.target.name()
+        ));
+    }
     if let Some(r) = args.rate
         && !(r.is_finite() && (MIN_RATE..=MAX_RATE).contains(&r))
     {
@@ -554,6 +572,7 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
         errors: total.errors,
         verified: args.verify,
         pose_format: args.pose_format,
+        per_message: args.per_message,
     })
 }
 
@@ -572,6 +591,8 @@ mod argument_tests {
             ("--concurrency", "0"),
             ("--pipeline", "0"),
             ("--batch-size", "100000000"),
+            ("--per-message", "0"),
+            ("--per-message", "2"),
         ] {
             let args = LoadArgs::try_parse_from(["kinserve-load", "--target", "rest", flag, value])
                 .unwrap();

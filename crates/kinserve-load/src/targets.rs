@@ -225,13 +225,29 @@ fn grpc_poses(poses: Vec<pb::Pose>, packed: Option<pb::PackedPoses>, format: Pos
     }
 }
 
-/// A WebSocket FK message.
+/// A WebSocket FK message: one configuration (`joints`) or many
+/// (`configurations`, with `--per-message` above 1).
 #[derive(serde::Serialize)]
 struct WsMessage<'a> {
     id: u64,
-    joints: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    joints: Option<&'a [f64]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    configurations: Option<Vec<&'a [f64]>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pose_format: Option<&'static str>,
+}
+
+/// A WebSocket reply to many configurations: its id and the poses (in the
+/// batch route's field of the format: `poses`, `matrices` or `positions`)
+/// or the error.
+#[derive(serde::Deserialize)]
+struct WsManyReply {
+    id: Option<u64>,
+    poses: Option<Vec<MatrixOnly>>,
+    matrices: Option<Vec<Vec<f64>>>,
+    positions: Option<Vec<Vec<f64>>>,
+    error: Option<WsError>,
 }
 
 /// A WebSocket reply: its id and the pose (in the field of the format asked
@@ -252,8 +268,12 @@ struct WsError {
 }
 
 /// A WebSocket reply as the worker sees it (typed decoding: cheap on the
-/// client, which shares the machine with the server).
-fn decode_ws(text: &str, format: PoseFormat) -> Reply {
+/// client, which shares the machine with the server); `many`: a reply to
+/// many configurations.
+fn decode_ws(text: &str, format: PoseFormat, many: bool) -> Reply {
+    if many {
+        return decode_ws_many(text, format);
+    }
     let Ok(r) = serde_json::from_str::<WsReply>(text) else {
         return Reply::Closed("decode".into());
     };
@@ -263,6 +283,24 @@ fn decode_ws(text: &str, format: PoseFormat) -> Reply {
     };
     match pose {
         Some(pose) => Reply::Pose(r.id.unwrap_or(u64::MAX), pose),
+        None => {
+            let status = r.error.and_then(|e| e.status).unwrap_or(0);
+            Reply::Error(r.id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
+        }
+    }
+}
+
+/// [`decode_ws`] of a reply to many configurations.
+fn decode_ws_many(text: &str, format: PoseFormat) -> Reply {
+    let Ok(r) = serde_json::from_str::<WsManyReply>(text) else {
+        return Reply::Closed("decode".into());
+    };
+    let poses = match format {
+        PoseFormat::Full => r.poses.map(|p| p.iter().map(|p| flat(&p.matrix)).collect()),
+        _ => field_of(format, r.matrices, r.positions),
+    };
+    match poses {
+        Some(poses) => Reply::Poses(r.id.unwrap_or(u64::MAX), Poses::Each(poses)),
         None => {
             let status = r.error.and_then(|e| e.status).unwrap_or(0);
             Reply::Error(r.id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
@@ -508,6 +546,8 @@ struct InFlight {
 /// Outcome of one stream reply.
 enum Reply {
     Pose(u64, Vec<f64>),
+    /// The poses of a message of many configurations.
+    Poses(u64, Poses),
     Error(u64, String),
     Closed(String),
 }
@@ -520,25 +560,50 @@ enum Outbound {
         tx: tokio::sync::mpsc::Sender<pb::StreamForwardKinematicsRequest>,
         robot: String,
         options: Option<pb::FkOptions>,
+        /// Joints per configuration when a message carries many (else 0).
+        many: usize,
     },
 }
 
 impl Outbound {
-    /// Queues message `id` with joints `q`; false when the stream is gone.
+    /// Queues message `id` with joints `q` (one configuration, or many
+    /// after one another); false when the stream is gone.
     async fn send(&self, id: u64, q: Vec<f64>) -> bool {
         match self {
             Outbound::Ws(tx) => tx.send((id, q)).await.is_ok(),
-            Outbound::Grpc { tx, robot, options } => {
-                let req = pb::StreamForwardKinematicsRequest {
+            Outbound::Grpc {
+                tx,
+                robot,
+                options,
+                many,
+            } => {
+                let mut req = pb::StreamForwardKinematicsRequest {
                     id,
                     robot: robot.clone(),
-                    joints: q,
                     options: *options,
                     ..Default::default()
                 };
+                match *many {
+                    0 => req.joints = q,
+                    dof => {
+                        req.configurations = q
+                            .chunks(dof)
+                            .map(|c| pb::JointConfiguration { joints: c.to_vec() })
+                            .collect()
+                    }
+                }
                 tx.send(req).await.is_ok()
             }
         }
+    }
+}
+
+/// Joints per configuration when stream messages carry many (`--per-message`
+/// above 1), else 0.
+fn many_of(plan: &Plan) -> usize {
+    match plan.args.per_message {
+        1 => 0,
+        _ => plan.robot.as_ref().map_or(1, |r| r.dof().max(1)),
     }
 }
 
@@ -546,7 +611,9 @@ type Replies = tokio::sync::mpsc::Receiver<Reply>;
 
 /// A WebSocket stream: a writer task that writes every message ready before
 /// flushing, and a reader task decoding replies.
-async fn ws_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), String> {
+async fn ws_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
+    let args = &plan.args;
+    let many = many_of(plan);
     let url = format!("ws://{}/v1/robots/{}/fk/stream", args.http_addr, args.robot);
     let (ws, _) = tokio_tungstenite::connect_async(url)
         .await
@@ -556,10 +623,19 @@ async fn ws_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), Str
     let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
     let pose_format = args.pose_format.json_name();
     let text = move |id: u64, q: &[f64]| {
-        let msg = WsMessage {
-            id,
-            joints: q,
-            pose_format,
+        let msg = match many {
+            0 => WsMessage {
+                id,
+                joints: Some(q),
+                configurations: None,
+                pose_format,
+            },
+            dof => WsMessage {
+                id,
+                joints: None,
+                configurations: Some(q.chunks(dof).collect()),
+                pose_format,
+            },
         };
         serde_json::to_string(&msg).map(|m| Message::Text(m.into()))
     };
@@ -585,7 +661,7 @@ async fn ws_transport(args: &super::LoadArgs) -> Result<(Outbound, Replies), Str
     tokio::spawn(async move {
         while let Some(m) = stream.next().await {
             let reply = match m {
-                Ok(Message::Text(t)) => decode_ws(&t, format),
+                Ok(Message::Text(t)) => decode_ws(&t, format, many > 0),
                 Ok(Message::Close(_)) => Reply::Closed("ws_closed".into()),
                 Ok(_) => continue,
                 Err(_) => Reply::Closed("transport".into()),
@@ -612,9 +688,18 @@ async fn grpc_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
         .map_err(|s| format!("grpc stream: {s}"))?;
     let mut inbound = response.into_inner();
     let (rtx, rrx) = tokio::sync::mpsc::channel::<Reply>(args.pipeline + 1);
+    let format = args.pose_format;
     tokio::spawn(async move {
         loop {
             let reply = match inbound.message().await {
+                Ok(Some(m))
+                    if m.result.is_none() && (!m.poses.is_empty() || m.packed_poses.is_some()) =>
+                {
+                    Reply::Poses(
+                        m.id,
+                        grpc_poses(m.poses, m.packed_poses.map(|b| *b), format),
+                    )
+                }
                 Ok(Some(m)) => match m.result {
                     Some(pb::stream_forward_kinematics_response::Result::Pose(p)) => {
                         Reply::Pose(m.id, p.matrix)
@@ -640,6 +725,7 @@ async fn grpc_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
         tx: req_tx,
         robot: args.robot.clone(),
         options: args.pose_format.pb_options(),
+        many: many_of(plan),
     };
     Ok((outbound, rrx))
 }
@@ -659,7 +745,7 @@ async fn stream_worker(
     let mut count = 0u64;
 
     let (outbound, mut reply_rx) = match args.target {
-        Target::Ws => ws_transport(args).await?,
+        Target::Ws => ws_transport(plan).await?,
         _ => grpc_transport(plan).await?,
     };
 
@@ -669,8 +755,10 @@ async fn stream_worker(
             now < plan.measure_until && (args.max_requests == 0 || count < args.max_requests);
         if open && inflight.len() < args.pipeline && schedule.due(now) {
             let t0 = schedule.take(now);
-            let mut q = Vec::with_capacity(8);
-            source.fill(&mut q);
+            let mut q = Vec::with_capacity(8 * args.per_message);
+            for _ in 0..args.per_message {
+                source.fill(&mut q);
+            }
             let id = next_id;
             next_id += 1;
             count += 1;
@@ -763,8 +851,38 @@ fn settle(plan: &Plan, head: InFlight, reply: Reply, tally: &mut Tally) -> bool 
                 tally.error("verify");
             }
         }
+        Reply::Poses(id, poses) => {
+            if !head.measuring {
+                return true;
+            }
+            tally.answered += 1;
+            tally.record(latency);
+            if id != head.id {
+                tally.error("out_of_order");
+                return true;
+            }
+            settle_many(plan, &head.q, &poses, tally);
+        }
     }
     true
+}
+
+/// Counts and (with `--verify`) checks the poses of a reply to a message of
+/// many configurations `q` (one after another).
+fn settle_many(plan: &Plan, q: &[f64], poses: &Poses, tally: &mut Tally) {
+    if poses.len() != plan.args.per_message {
+        tally.error("wrong_pose_count");
+        return;
+    }
+    tally.poses += poses.len() as u64;
+    if let (true, Some(robot)) = (plan.args.verify, plan.robot.as_ref()) {
+        let dof = robot.dof().max(1);
+        for (qk, m) in q.chunks(dof).zip(poses.iter()) {
+            if !verify_pose(robot, qk, m, plan.args.pose_format) {
+                tally.error("verify");
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -791,14 +909,48 @@ mod tests {
         let r = decode_ws(
             r#"{"id":4,"length_unit":"m","position":[1,2,3]}"#,
             PoseFormat::Position,
+            false,
         );
         assert!(matches!(r, Reply::Pose(4, ref p) if p == &[1.0, 2.0, 3.0]));
         let full = r#"{"id":5,"pose":{"matrix":[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}}"#;
-        let r = decode_ws(full, PoseFormat::Full);
+        let r = decode_ws(full, PoseFormat::Full, false);
         assert!(matches!(r, Reply::Pose(5, ref p) if p.len() == 16 && p[3] == 1.0));
-        let r = decode_ws(r#"{"id":6,"error":{"status":422}}"#, PoseFormat::Matrix);
+        let r = decode_ws(
+            r#"{"id":6,"error":{"status":422}}"#,
+            PoseFormat::Matrix,
+            false,
+        );
         assert!(matches!(r, Reply::Error(6, ref e) if e == "ws_error_422"));
-        let r = decode_ws(r#"{"id":7,"position":[1,2,3]}"#, PoseFormat::Matrix);
+        let r = decode_ws(r#"{"id":7,"position":[1,2,3]}"#, PoseFormat::Matrix, false);
         assert!(matches!(r, Reply::Error(7, _)));
+    }
+
+    #[test]
+    fn websocket_replies_to_many_configurations_are_read_from_the_batch_fields() {
+        let many = |text: &str, format| match decode_ws(text, format, true) {
+            Reply::Poses(id, poses) => {
+                Ok((id, poses.iter().map(<[f64]>::to_vec).collect::<Vec<_>>()))
+            }
+            Reply::Error(id, e) => Err((id, e)),
+            _ => Err((u64::MAX, "closed".into())),
+        };
+        let positions = r#"{"id":8,"length_unit":"m","positions":[[1,2,3],[4,5,6]]}"#;
+        assert_eq!(
+            many(positions, PoseFormat::Position),
+            Ok((8, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]))
+        );
+        let full = r#"{"id":9,"poses":[{"matrix":[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]}"#;
+        let (id, poses) = many(full, PoseFormat::Full).unwrap();
+        assert_eq!(
+            (id, poses.len(), poses[0].len(), poses[0][7]),
+            (9, 1, 16, 2.0)
+        );
+        // The single-configuration field, or another format's, is no answer.
+        assert!(many(r#"{"id":10,"position":[1,2,3]}"#, PoseFormat::Position).is_err());
+        assert!(many(positions, PoseFormat::Matrix).is_err());
+        assert_eq!(
+            many(r#"{"id":11,"error":{"status":413}}"#, PoseFormat::Matrix),
+            Err((11, "ws_error_413".to_string()))
+        );
     }
 }

@@ -103,10 +103,22 @@ async fn run_clean(app: &TestApp, target: &str, robot: &str, pose_format: &str) 
 
 /// Runs `cmd` (from [`load_command`]) and asserts a clean report.
 async fn assert_clean_report(
+    cmd: tokio::process::Command,
+    what: &str,
+    target: &str,
+    pose_format: &str,
+) {
+    assert_clean_report_of(cmd, what, target, pose_format, 1).await
+}
+
+/// [`assert_clean_report`] of a run whose stream messages carry `per_message`
+/// configurations each.
+async fn assert_clean_report_of(
     mut cmd: tokio::process::Command,
     what: &str,
     target: &str,
     pose_format: &str,
+    per_message: u64,
 ) {
     let out = cmd.output().await.expect("kinserve-load runs");
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -133,8 +145,9 @@ async fn assert_clean_report(
         "rest-batch" | "rest-batch-packed" | "grpc-batch" => {
             assert_eq!(poses, sent * 50, "{what}: poses per batch")
         }
-        _ => assert_eq!(poses, sent, "{what}: one pose per request"),
+        _ => assert_eq!(poses, sent * per_message, "{what}: poses per message"),
     }
+    assert_eq!(report["per_message"].as_u64(), Some(per_message), "{what}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -177,6 +190,27 @@ async fn compact_pose_formats_run_clean_with_verification_on_every_protocol() {
     }
     for target in ["rest-batch", "rest-batch-packed", "grpc-batch", "ws"] {
         run_clean(&app, target, "puma560", "position").await;
+    }
+}
+
+/// `--per-message 5`: every stream message carries five configurations
+/// (`configurations`) and is answered with five poses, each verified, on the
+/// WebSocket and the gRPC stream, in the full and the compact formats.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stream_messages_of_many_configurations_run_clean_with_verification() {
+    let app = spawn_app().await;
+    for (target, robot, pose_format) in [
+        ("ws", "puma560", "full"),
+        ("ws", "panda", "matrix"),
+        ("ws", "stanford", "position"),
+        ("grpc-stream", "puma560", "full"),
+        ("grpc-stream", "panda", "matrix"),
+        ("grpc-stream", "stanford", "position"),
+    ] {
+        let mut cmd = load_command(&app, target, robot);
+        cmd.args(["--pose-format", pose_format, "--per-message", "5"]);
+        let what = format!("{target}/{robot}/{pose_format} x5");
+        assert_clean_report_of(cmd, &what, target, pose_format, 5).await;
     }
 }
 
