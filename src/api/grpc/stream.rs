@@ -177,8 +177,13 @@ impl GrpcService {
         };
         // Until the first message, the (shorter) first-message timeout.
         let mut wait = idle.min(self.settings.stream_first_message_timeout);
+        // The stream's own token, cancelled with the server's: checking it
+        // per message locks only this stream's node, where the server's
+        // token is one mutex every stream of every worker would take per
+        // message.
+        let shutdown = self.shutdown.child_token();
         loop {
-            if self.shutdown.is_cancelled() {
+            if shutdown.is_cancelled() {
                 return End::Closed(closing());
             }
             // A message already received is taken at once; only when none is
@@ -188,7 +193,7 @@ impl GrpcService {
             let next = match ready {
                 Some(r) => Ok(r),
                 None => tokio::select! {
-                    _ = self.shutdown.cancelled() => return End::Closed(closing()),
+                    _ = shutdown.cancelled() => return End::Closed(closing()),
                     _ = replies.closed() => return End::Quiet, // client cancelled
                     r = tokio::time::timeout(wait, inbound.message()) => r,
                 },
@@ -217,7 +222,7 @@ impl GrpcService {
                 Err(Some(resp)) => resp,
             };
             let sent = tokio::select! {
-                _ = self.shutdown.cancelled() => return End::Closed(closing()),
+                _ = shutdown.cancelled() => return End::Closed(closing()),
                 r = tokio::time::timeout(idle, replies.send(resp)) => r,
             };
             match sent {

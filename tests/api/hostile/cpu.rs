@@ -386,6 +386,32 @@ async fn a_client_holding_its_compute_share_is_refused_at_once_and_another_is_se
         .get_details_retry_info()
         .expect("a RetryInfo detail");
     assert_eq!(retry.retry_delay, Some(Duration::from_secs(1)));
+    // A small FK batch is computed on the request's thread, as a single FK
+    // is, so it is served even now; one past that size needs the pool and
+    // is refused the same way.
+    let fk_batch = |n: usize| pb::ForwardKinematicsBatchRequest {
+        robot: "puma560".into(),
+        configurations: vec![
+            pb::JointConfiguration {
+                joints: vec![0.1; 6]
+            };
+            n
+        ],
+        ..Default::default()
+    };
+    let small = again
+        .forward_kinematics_batch(fk_batch(kinserve::service::FK_BATCH_INLINE))
+        .await
+        .expect("a small FK batch is served while the share is held");
+    assert_eq!(
+        small.into_inner().poses.len(),
+        kinserve::service::FK_BATCH_INLINE
+    );
+    let large = again
+        .forward_kinematics_batch(fk_batch(kinserve::service::FK_BATCH_INLINE + 1))
+        .await
+        .expect_err("a larger FK batch needs the share");
+    assert_eq!(large.code(), tonic::Code::ResourceExhausted, "{large:?}");
     // … while another client's batch is computed.
     let mut other = grpc_from(WITNESS_ADDR, &app.grpc).await;
     let q = kinserve::api::grpc::pb::JointConfiguration {
