@@ -595,7 +595,8 @@ pub struct ServeConfig {
     #[arg(long, env = "KINSERVE_IK_TIME_LIMIT", default_value = "50ms", value_parser = parse_ik_time_limit)]
     pub ik_time_limit: Duration,
     /// Computations at once on the compute pool: IK (single, batch, stream
-    /// messages), FK and Jacobian batches, closed forms and URDF exports.
+    /// messages), Jacobian batches, FK batches of more than 256
+    /// configurations, closed forms and URDF exports.
     /// More are refused at once (503 + Retry-After, RESOURCE_EXHAUSTED).
     /// 0: one less than the number of CPUs, at least 2 (so that two clients
     /// each have one).
