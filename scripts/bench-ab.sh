@@ -8,13 +8,14 @@
 #   RUNS="grpc-health;grpc-stream --pipeline 32 --pose-format matrix" scripts/bench-ab.sh A B
 # RUNS: `;`-separated kinserve-load arguments after --target (default: gRPC
 # health, the gRPC stream in `matrix` and `full`, WebSocket `matrix`, REST FK),
-# each at --concurrency 16; a row reports poses/s (requests/s when a run has
+# each at --concurrency CONCURRENCY (default 16); a row reports poses/s (requests/s when a run has
 # no poses). Settings of every server: those of scripts/bench.sh.
 set -euo pipefail
 [ $# -eq 2 ] || { sed -n '2,12p' "$0" >&2; exit 2; }
 OLD=$1 NEW=$2
 ROUNDS=${ROUNDS:-3}
 DURATION=${DURATION:-5s}
+CONCURRENCY=${CONCURRENCY:-16}
 HTTP=127.0.0.1:${HTTP_PORT:-18580}
 GRPC=127.0.0.1:${GRPC_PORT:-18551}
 RUNS=${RUNS:-"grpc-health;grpc-stream --pipeline 32 --pose-format matrix;grpc-stream --pipeline 32;ws --pipeline 32 --pose-format matrix;rest"}
@@ -32,7 +33,7 @@ trap cleanup EXIT
 rate() {
   local out
   if ! out=$("$OLD/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot puma560 \
-    --duration "$DURATION" --warmup 1s --concurrency 16 --json --target "$@"); then
+    --duration "$DURATION" --warmup 1s --concurrency "$CONCURRENCY" --json --target "$@"); then
     echo "failed"; return
   fi
   python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))' <<<"$out"

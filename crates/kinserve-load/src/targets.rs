@@ -119,6 +119,24 @@ fn field_of<T>(format: PoseFormat, matrix: Option<T>, position: Option<T>) -> Op
     }
 }
 
+/// The arrays of numbers under the top-level `field` of a JSON body, read
+/// by the scanner the server reads batch bodies with
+/// ([`kinserve_model::split_rows`]), if it takes them and the rest of the
+/// body is valid JSON; `None` sends the caller to serde.
+fn fast_rows(bytes: &[u8], field: &str) -> Option<Vec<Vec<f64>>> {
+    let (rest, rows) = kinserve_model::split_rows(bytes, field)?;
+    serde_json::from_slice::<serde::de::IgnoredAny>(&rest).ok()?;
+    let mut values = rows.values.as_slice();
+    rows.lens
+        .iter()
+        .map(|&n| {
+            let (row, tail) = values.split_at_checked(n as usize)?;
+            values = tail;
+            Some(row.to_vec())
+        })
+        .collect()
+}
+
 /// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
 fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<f64>>, String> {
     let decoded = match (format, batch) {
@@ -129,8 +147,14 @@ fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<
             .map(|v| Some(v.poses.iter().map(|p| flat(&p.matrix)).collect())),
         (_, false) => serde_json::from_slice::<CompactSingleReply>(bytes)
             .map(|v| field_of(format, v.matrix, v.position).map(|p| vec![p])),
-        (_, true) => serde_json::from_slice::<CompactBatchReply>(bytes)
-            .map(|v| field_of(format, v.matrices, v.positions)),
+        (_, true) => {
+            let field = field_of(format, Some("matrices"), Some("positions")).unwrap_or_default();
+            if let Some(poses) = fast_rows(bytes, field) {
+                return Ok(poses);
+            }
+            serde_json::from_slice::<CompactBatchReply>(bytes)
+                .map(|v| field_of(format, v.matrices, v.positions))
+        }
     };
     match decoded {
         Ok(Some(poses)) => Ok(poses),
@@ -902,6 +926,15 @@ mod tests {
         assert!(decode_rest(br#"{"pose":[1,2,3]}"#, false, PoseFormat::Position).is_err());
         assert!(decode_rest(br#"{"poses":[[1,2,3]]}"#, true, PoseFormat::Position).is_err());
         assert!(decode_rest(batch, true, PoseFormat::Matrix).is_err());
+        // The batch field is read by the fast scanner, and only when the rest
+        // of the body is valid JSON (a trailing comma is not).
+        assert_eq!(
+            fast_rows(batch, "positions"),
+            Some(vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]])
+        );
+        let trailing = br#"{"positions":[[1,2,3]],}"#;
+        assert_eq!(fast_rows(trailing, "positions"), None);
+        assert!(decode_rest(trailing, true, PoseFormat::Position).is_err());
     }
 
     #[test]

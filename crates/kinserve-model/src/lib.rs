@@ -27,6 +27,7 @@ mod ik_path;
 mod ik_solutions;
 mod joints;
 mod json;
+mod json_rows;
 pub mod operations;
 mod pose_format;
 mod requests;
@@ -56,6 +57,7 @@ pub use joints::{JointBatch, JointVector};
 pub use json::{
     MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
 };
+pub use json_rows::{parse_json_rows, split_rows};
 pub use pose_format::{PoseFormat, matrix12};
 pub use requests::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, StreamOp,

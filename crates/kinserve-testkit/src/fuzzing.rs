@@ -22,6 +22,7 @@
 
 use std::sync::OnceLock;
 
+use crate::rng::SplitMix64;
 use kinserve::api::pose::Pose;
 use kinserve::api::rest::{FkBatchRequest, FkRequest, WsRequest};
 use kinserve::error::Error;
@@ -167,6 +168,28 @@ pub fn check_model(bytes: &[u8]) {
     }
 }
 
+/// `bytes` as a REST FK batch body, read as the handler reads it (the fast
+/// path of `parse_json_rows`), after checking that the plain parse gives the
+/// same request (every number bit for bit: `Debug` writes the shortest
+/// round-trip form and the sign of zero) or the same error.
+fn parse_batch(bytes: &[u8]) -> Result<FkBatchRequest, kinserve_model::ModelError> {
+    let fast =
+        kinserve_model::parse_json_rows(bytes, "configurations", |r: &mut FkBatchRequest| {
+            &mut r.configurations
+        });
+    let plain = parse_json::<FkBatchRequest>(bytes);
+    match (&fast, &plain) {
+        (Ok(f), Ok(p)) => assert_eq!(
+            format!("{f:?}"),
+            format!("{p:?}"),
+            "fast and plain parse differ"
+        ),
+        (Err(f), Err(p)) => assert_eq!(f, p, "fast and plain parse fail differently"),
+        _ => panic!("fast parse {fast:?}, plain parse {plain:?}"),
+    }
+    fast
+}
+
 /// Parses `bytes` as a REST FK body, a REST batch body and a WebSocket FK
 /// message, and evaluates whatever parses against a few built-in robots the
 /// way the handlers do. Panics if a property is violated.
@@ -180,7 +203,7 @@ pub fn check_fk_request(bytes: &[u8]) {
         }
         Err(e) => assert_client_error(&Error::from(e), "FkRequest"),
     }
-    match parse_json::<FkBatchRequest>(bytes) {
+    match parse_batch(bytes) {
         Ok(req) => {
             let spec = FkBatchSpec::from(req);
             for robot in robots() {
@@ -423,8 +446,8 @@ fn in_limit_configurations(robot: &Robot, rng: &mut Rng) -> Vec<Vec<f64>> {
     out
 }
 
-/// A small deterministic generator seeded from the input (splitmix64).
-struct Rng(u64);
+/// A small deterministic generator seeded from the input ([`SplitMix64`]).
+struct Rng(SplitMix64);
 
 impl Rng {
     fn new(bytes: &[u8]) -> Rng {
@@ -433,24 +456,16 @@ impl Rng {
         for b in bytes {
             h = (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3);
         }
-        Rng(h)
-    }
-
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        Rng(SplitMix64(h))
     }
 
     fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
+        self.0.below(n)
     }
 
-    /// Uniform in `[0, 1]`.
+    /// Uniform in `[0, 1)`.
     fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+        self.0.unit()
     }
 
     /// A value in `[-bound, bound]`, often one of the ends or zero.

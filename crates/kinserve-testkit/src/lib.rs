@@ -24,7 +24,9 @@ mod fuzz_shared;
 #[cfg(feature = "server")]
 pub mod fuzzing;
 pub mod reference;
+pub mod rng;
 pub mod skip;
 
 pub use reference::{RobotExt, forward_reference, supported_kernels};
+pub use rng::SplitMix64;
 pub use skip::{report, skip_unless_ci, under_ci};

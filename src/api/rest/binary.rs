@@ -37,7 +37,7 @@ use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, Schema, SchemaFormat, 
 
 use super::AppState;
 use super::dto::{FkBatchRequest, JacobianBatchRequest};
-use super::extract::{content_type, is_json, parse_object, read_bytes, refusal};
+use super::extract::{content_type, is_json, parse_object, parse_object_rows, read_bytes, refusal};
 use super::problem::Problem;
 use crate::error::Error;
 use crate::kinematics::Transform;
@@ -198,6 +198,11 @@ pub trait BatchKind: Send {
     const PACKED: bool;
     /// The JSON body as a request.
     fn from_json(json: Self::Json) -> Self::Spec;
+    /// Parses the JSON body ([`parse_object`]; the configurations of FK and
+    /// Jacobian batches by [`parse_object_rows`]).
+    fn parse_json(bytes: &[u8]) -> Result<Self::Json, Error> {
+        parse_object(bytes)
+    }
     /// The message's robot name and number of items (configurations, targets).
     fn proto_head(msg: &Self::Proto) -> (&str, usize);
     /// The message as a request.
@@ -242,7 +247,7 @@ async fn read<K: BatchKind>(req: Request, state: &AppState) -> Result<BatchReque
     let mime = ct.split(';').next().unwrap_or("").trim();
     if is_json(ct) {
         let bytes = read_bytes(req, state).await?;
-        Ok(BatchRequest::Json(parse_object(&bytes)?))
+        Ok(BatchRequest::Json(K::parse_json(&bytes)?))
     } else if mime.eq_ignore_ascii_case(PROTOBUF) {
         Ok(BatchRequest::Protobuf(read_bytes(req, state).await?))
     } else if K::PACKED && mime.eq_ignore_ascii_case(PACKED) {
@@ -342,6 +347,9 @@ impl BatchKind for FkBatch {
     fn from_json(json: FkBatchRequest) -> FkBatchSpec {
         FkBatchSpec::from(json)
     }
+    fn parse_json(bytes: &[u8]) -> Result<FkBatchRequest, Error> {
+        parse_object_rows(bytes, |r: &mut FkBatchRequest| &mut r.configurations)
+    }
     fn proto_head(msg: &Self::Proto) -> (&str, usize) {
         (&msg.robot, msg.configurations.len())
     }
@@ -368,6 +376,9 @@ impl BatchKind for JacobianBatch {
     const PACKED: bool = true;
     fn from_json(json: JacobianBatchRequest) -> JacobianBatchSpec {
         JacobianBatchSpec::from(json)
+    }
+    fn parse_json(bytes: &[u8]) -> Result<JacobianBatchRequest, Error> {
+        parse_object_rows(bytes, |r: &mut JacobianBatchRequest| &mut r.configurations)
     }
     fn proto_head(msg: &Self::Proto) -> (&str, usize) {
         (&msg.robot, msg.configurations.len())

@@ -11,7 +11,7 @@ use super::AppState;
 use super::problem::ApiError;
 use crate::compute::ClientId;
 use crate::error::Error;
-use crate::model::parse_json;
+use crate::model::{Configurations, parse_json, parse_json_rows};
 
 /// A JSON body parsed with field paths. Checks the content type (415), the
 /// body size (413: the batch limit on the routes admitted as batches, the
@@ -109,6 +109,23 @@ pub(super) fn is_json(content_type: &str) -> bool {
 /// refused as a wrong type: serde would otherwise read a struct from an array
 /// of its fields in declaration order (`[[0, 0]]` as `{"joints": [0, 0]}`).
 pub fn parse_object<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Error> {
+    refuse_array(bytes)?;
+    Ok(parse_json(bytes)?)
+}
+
+/// [`parse_object`] of a batch body, its `configurations` read by the fast
+/// path of [`parse_json_rows`] (the same value and errors; a 10,000-row body
+/// in well under half the time) and put where `rows` says.
+pub fn parse_object_rows<T: DeserializeOwned>(
+    bytes: &[u8],
+    rows: impl FnOnce(&mut T) -> &mut Configurations,
+) -> Result<T, Error> {
+    refuse_array(bytes)?;
+    Ok(parse_json_rows(bytes, "configurations", rows)?)
+}
+
+/// A top-level array as a wrong type (see [`parse_object`]).
+fn refuse_array(bytes: &[u8]) -> Result<(), Error> {
     let first = bytes
         .iter()
         .find(|b| !matches!(b, b' ' | b'\t' | b'\n' | b'\r'));
@@ -118,7 +135,7 @@ pub fn parse_object<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Error> {
             violations: Vec::new(),
         });
     }
-    Ok(parse_json(bytes)?)
+    Ok(())
 }
 
 /// The `{name}` path segment of a robot route.
