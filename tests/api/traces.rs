@@ -330,7 +330,11 @@ async fn rest_and_grpc_spans_reach_the_collector_as_children_of_the_callers_span
     let (trace, server_span) = answered(metadata.get("traceparent").map(|v| v.to_str().unwrap()));
     assert_eq!(trace, GRPC_CALLER.trace);
     let spans = received
-        .wait_for(&unhex(GRPC_CALLER.trace), |s| s.len() >= 4)
+        .wait_for(&unhex(GRPC_CALLER.trace), |s| {
+            s.len() >= 4
+                && s.iter()
+                    .any(|x| x.name == "kinematics.v1.KinematicsService/ForwardKinematics")
+        })
         .await;
     let root = spans
         .iter()
@@ -388,9 +392,13 @@ async fn batches_carry_their_span_onto_the_compute_pool_and_store_writes_are_spa
         .await
         .unwrap();
     assert_eq!(batch.status(), 200);
+    // The request's own span ends after the answer is written (a streamed
+    // one here), possibly in a later export than the pool's spans: wait for all.
     let spans = received
         .wait_for(&unhex(BATCH_CALLER.trace), |s| {
-            s.iter().any(|x| x.name == "compute pool") && s.iter().any(|x| x.name == "compute")
+            ["compute pool", "compute", "POST /v1/robots/{name}/fk/batch"]
+                .iter()
+                .all(|name| s.iter().any(|x| x.name == *name))
         })
         .await;
     let root = named(&spans, "POST /v1/robots/{name}/fk/batch");
@@ -415,7 +423,9 @@ async fn batches_carry_their_span_onto_the_compute_pool_and_store_writes_are_spa
     assert_eq!(put.status(), 201);
     let spans = received
         .wait_for(&unhex(STORE_CALLER.trace), |s| {
-            s.iter().any(|x| x.name == "store write")
+            ["store write", "PUT /v1/robots/{name}"]
+                .iter()
+                .all(|name| s.iter().any(|x| x.name == *name))
         })
         .await;
     let root = named(&spans, "PUT /v1/robots/{name}");
@@ -557,7 +567,9 @@ async fn a_websocket_upgrade_joins_the_callers_trace_and_its_stream_is_spanned()
     drop(sock);
     let spans = received
         .wait_for(&unhex(WS_CALLER.trace), |s| {
-            s.iter().any(|x| x.name == "stream")
+            ["stream", "GET /v1/robots/{name}/fk/stream"]
+                .iter()
+                .all(|name| s.iter().any(|x| x.name == *name))
         })
         .await;
     let root = named(&spans, "GET /v1/robots/{name}/fk/stream");

@@ -164,8 +164,10 @@ fn read_rows(b: &[u8], i: usize) -> Option<(Configurations, usize)> {
     if b.get(i) != Some(&b'[') {
         return None;
     }
-    // About 20 bytes per number (17 digits, sign, point, comma): a hint, not a bound.
-    let hint = (b.len() - i) / 20;
+    // About 20 bytes per number (17 digits, sign, point, comma), capped so
+    // that a short array in front of a long string reserves little: a hint,
+    // not a bound.
+    let hint = ((b.len() - i) / 20).min(1 << 16);
     let mut out = Configurations {
         values: Vec::with_capacity(hint),
         lens: Vec::with_capacity(hint / 6),
