@@ -114,8 +114,9 @@ pub fn parse_object<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Error> {
 }
 
 /// [`parse_object`] of a batch body, its `configurations` read by the fast
-/// path of [`parse_json_rows`] (the same value and errors; a 10,000-row body
-/// in well under half the time) and put where `rows` says.
+/// path of [`parse_json_rows`] (the same value and errors; reading a
+/// 10,000-row body took about a third less time, BENCHMARKS.md) and put
+/// where `rows` says.
 pub fn parse_object_rows<T: DeserializeOwned>(
     bytes: &[u8],
     rows: impl FnOnce(&mut T) -> &mut Configurations,
