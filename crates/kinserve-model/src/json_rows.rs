@@ -47,8 +47,10 @@ pub fn parse_json_rows<T: DeserializeOwned>(
     key: &str,
     rows: impl FnOnce(&mut T) -> &mut Configurations,
 ) -> Result<T> {
+    // The rebuilt body by serde alone: a failure here goes to the plain
+    // parse of the original, which gives the error (with its field path).
     if let Some((rest, found)) = split_rows(bytes, key)
-        && let Ok(mut value) = parse_json::<T>(&rest)
+        && let Ok(mut value) = serde_json::from_slice::<T>(&rest)
     {
         *rows(&mut value) = found;
         return Ok(value);
@@ -161,36 +163,34 @@ fn skip_ws(b: &[u8], mut i: usize) -> usize {
 
 /// The array of arrays of numbers starting at `i`, and the offset after it.
 fn read_rows(b: &[u8], i: usize) -> Option<(Configurations, usize)> {
-    if b.get(i) != Some(&b'[') {
-        return None;
-    }
     // About 20 bytes per number (17 digits, sign, point, comma), capped so
     // that a short array in front of a long string reserves little: a hint,
     // not a bound.
-    let hint = ((b.len() - i) / 20).min(1 << 16);
+    let hint = (b.len().saturating_sub(i) / 20).min(1 << 16);
     let mut out = Configurations {
         values: Vec::with_capacity(hint),
         lens: Vec::with_capacity(hint / 6),
     };
-    let mut i = skip_ws(b, i + 1);
-    if b.get(i) == Some(&b']') {
-        return Some((out, i + 1));
-    }
-    loop {
-        let (len, after) = read_row(b, i, &mut out.values)?;
+    let (_, end) = read_array(b, i, |row| {
+        let (len, after) = read_array(b, row, |at| {
+            let (x, after) = read_number(b, at)?;
+            out.values.push(x);
+            Some(after)
+        })?;
         out.lens.push(len);
-        i = skip_ws(b, after);
-        match b.get(i)? {
-            b',' => i = skip_ws(b, i + 1),
-            b']' => return Some((out, i + 1)),
-            _ => return None,
-        }
-    }
+        Some(after)
+    })?;
+    Some((out, end))
 }
 
-/// One array of numbers starting at `i`, appended to `values`: its length
-/// and the offset after it.
-fn read_row(b: &[u8], i: usize, values: &mut Vec<f64>) -> Option<(u32, usize)> {
+/// The JSON array starting at `i`, each element read by `item` (given the
+/// element's first byte, it returns the offset after the element): the
+/// number of elements and the offset after the array.
+fn read_array(
+    b: &[u8],
+    i: usize,
+    mut item: impl FnMut(usize) -> Option<usize>,
+) -> Option<(u32, usize)> {
     if b.get(i) != Some(&b'[') {
         return None;
     }
@@ -200,10 +200,8 @@ fn read_row(b: &[u8], i: usize, values: &mut Vec<f64>) -> Option<(u32, usize)> {
         return Some((0, i + 1));
     }
     loop {
-        let (x, after) = read_number(b, i)?;
-        values.push(x);
+        i = skip_ws(b, item(i)?);
         n = n.checked_add(1)?;
-        i = skip_ws(b, after);
         match b.get(i)? {
             b',' => i = skip_ws(b, i + 1),
             b']' => return Some((n, i + 1)),

@@ -235,7 +235,7 @@ fn rev(a: f64, alpha: f64, d: f64, theta: f64) -> DhRow {
 /// A twist well away from 0 and π (rad).
 fn twist(rng: &mut Rng) -> f64 {
     let t = rng.range(0.4, PI - 0.4);
-    if rng.next_f64() < 0.5 { -t } else { t }
+    if rng.unit() < 0.5 { -t } else { t }
 }
 
 fn random_fixed(rng: &mut Rng) -> DhRow {
@@ -372,7 +372,7 @@ fn random_arm(class: ArmClass, conv: Convention, rng: &mut Rng) -> Chain {
     let mut table = Vec::new();
     for (i, row) in rows.into_iter().enumerate() {
         table.push(row);
-        if fixed_after[i] && rng.next_f64() < 0.7 {
+        if fixed_after[i] && rng.unit() < 0.7 {
             table.push(random_fixed(rng));
         }
     }

@@ -166,10 +166,10 @@ fn every_robot_matches_central_differences_in_both_frames() {
 /// A random chain: 1–8 rows of random kinds (fixed rows included), random
 /// DH parameters, base and tool.
 fn random_chain(rng: &mut Rng, convention: Convention) -> Chain {
-    let n = 1 + (rng.next_f64() * 8.0) as usize;
+    let n = 1 + (rng.unit() * 8.0) as usize;
     let mut rows: Vec<DhRow> = (0..n)
         .map(|_| {
-            let u = rng.next_f64();
+            let u = rng.unit();
             DhRow {
                 kind: if u < 0.6 {
                     JointKind::Revolute

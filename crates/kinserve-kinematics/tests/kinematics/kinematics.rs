@@ -5,21 +5,8 @@ use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
-/// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next_f64()
-    }
-}
+/// Deterministic pseudo-random numbers: `unit()` in [0, 1), `range(lo, hi)`.
+pub use kinserve_testkit::SplitMix64 as Rng;
 
 /// Absolute error bound of the polynomial sine/cosine against `std`, for |x| ≤ 1e5 rad.
 /// Cody–Waite reduction leaves ~|x|·2^-53·(π/2 split error) and the polynomial ~1 ulp.
@@ -169,11 +156,11 @@ fn fast_single_batch_and_frames_match_the_plain_product() {
 fn random_aligned_chain(rng: &mut Rng, convention: Convention, n: usize) -> Chain {
     fn pick(rng: &mut Rng) -> f64 {
         let v = rng.range(-1.0, 1.0);
-        if rng.next_f64() < 0.5 { 0.0 } else { v }
+        if rng.unit() < 0.5 { 0.0 } else { v }
     }
     let rows: Vec<DhRow> = (0..n)
         .map(|_| {
-            let u = rng.next_f64();
+            let u = rng.unit();
             DhRow {
                 kind: if u < 0.6 {
                     JointKind::Revolute
@@ -183,20 +170,20 @@ fn random_aligned_chain(rng: &mut Rng, convention: Convention, n: usize) -> Chai
                     JointKind::Fixed
                 },
                 a: pick(rng),
-                alpha: [0.0f64, 90.0, -90.0, 180.0, 270.0][(rng.next_f64() * 5.0) as usize]
+                alpha: [0.0f64, 90.0, -90.0, 180.0, 270.0][(rng.unit() * 5.0) as usize]
                     .to_radians(),
                 d: pick(rng),
                 theta: [0.0, 0.0, 90f64.to_radians(), rng.range(-3.2, 3.2)]
-                    [(rng.next_f64() * 4.0) as usize],
+                    [(rng.unit() * 4.0) as usize],
             }
         })
         .collect();
-    let base = if rng.next_f64() < 0.5 {
+    let base = if rng.unit() < 0.5 {
         Transform::IDENTITY
     } else {
         Transform::from_translation_rpy([0.1, -0.2, 0.3], [0.3, -0.2, 1.0])
     };
-    let tool = (rng.next_f64() < 0.5).then(|| Transform::translation(0.0, 0.0, 0.1));
+    let tool = (rng.unit() < 0.5).then(|| Transform::translation(0.0, 0.0, 0.1));
     Chain::new(convention, &rows, base, tool)
 }
 

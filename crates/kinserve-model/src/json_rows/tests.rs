@@ -21,19 +21,9 @@ struct Body {
     extra: Option<serde_json::Value>,
 }
 
-/// The test generator with a pick from a list.
-struct Rng(SplitMix64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0.next_u64()
-    }
-    fn below(&mut self, n: usize) -> usize {
-        self.0.below(n)
-    }
-    fn pick<'a>(&mut self, items: &[&'a str]) -> &'a str {
-        items[self.below(items.len())]
-    }
+/// One of `items`, chosen by `r`.
+fn pick<'a>(r: &mut SplitMix64, items: &[&'a str]) -> &'a str {
+    items[r.below(items.len())]
 }
 
 /// Parses `bytes` both ways and checks they agree; true if both succeeded.
@@ -66,11 +56,11 @@ fn agree(bytes: &[u8]) -> bool {
 const WS: &[&str] = &["", "", " ", "\n", "\t ", "\r\n  "];
 
 /// A number in one of the spellings clients use (all inside the fast path).
-fn number(r: &mut Rng) -> String {
+fn number(r: &mut SplitMix64) -> String {
     let x = match r.below(3) {
-        0 => (r.next() as f64 / u64::MAX as f64 - 0.5) * 20.0,
-        1 => f64::from_bits(r.next()),
-        _ => (r.next() % 2000) as f64 - 1000.0,
+        0 => (r.next_u64() as f64 / u64::MAX as f64 - 0.5) * 20.0,
+        1 => f64::from_bits(r.next_u64()),
+        _ => (r.next_u64() % 2000) as f64 - 1000.0,
     };
     let x = if x.is_finite() { x } else { 0.5 };
     match r.below(9) {
@@ -79,60 +69,68 @@ fn number(r: &mut Rng) -> String {
         2 => format!("{x:E}"),
         3 => format!("{x:.3}"),
         4 => serde_json::to_string(&x).unwrap_or_default(),
-        5 => format!("{}", r.next() as i64),
-        6 => format!("{}", r.next()),
-        7 => r
-            .pick(&[
+        5 => format!("{}", r.next_u64() as i64),
+        6 => format!("{}", r.next_u64()),
+        7 => pick(
+            r,
+            &[
                 "-0", "0", "-0.0", "0e0", "1E+2", "1e-0002", "-12e3", "4.9e-324", "1e-400",
-            ])
-            .to_string(),
+            ],
+        )
+        .to_string(),
         _ => format!("{x:.17e}"),
     }
 }
 
-fn rows(r: &mut Rng) -> String {
-    let mut s = format!("[{}", r.pick(WS));
+fn rows(r: &mut SplitMix64) -> String {
+    let mut s = format!("[{}", pick(r, WS));
     for i in 0..r.below(7) {
         if i > 0 {
-            s += &format!("{},{}", r.pick(WS), r.pick(WS));
+            s += &format!("{},{}", pick(r, WS), pick(r, WS));
         }
         s += "[";
         for j in 0..r.below(9) {
             if j > 0 {
-                s += &format!("{},{}", r.pick(WS), r.pick(WS));
+                s += &format!("{},{}", pick(r, WS), pick(r, WS));
             }
             s += &number(r);
         }
-        s += &format!("{}]", r.pick(WS));
+        s += &format!("{}]", pick(r, WS));
     }
-    s + r.pick(WS) + "]"
+    s + pick(r, WS) + "]"
 }
 
 /// A valid body: the members in random order, tricky strings and nesting
 /// around the array.
-fn body(r: &mut Rng) -> String {
+fn body(r: &mut SplitMix64) -> String {
     let mut members = vec![format!(
         "\"configurations\"{}:{}{}",
-        r.pick(WS),
-        r.pick(WS),
+        pick(r, WS),
+        pick(r, WS),
         rows(r)
     )];
     if r.below(2) == 0 {
-        let unit = r.pick(&["\"rad\"", "\"deg\"", "\"r\\u0061d\"", "\"a\\\"],}{\\\\\""]);
+        let unit = pick(
+            r,
+            &["\"rad\"", "\"deg\"", "\"r\\u0061d\"", "\"a\\\"],}{\\\\\""],
+        );
         members.push(format!("\"angle_unit\":{unit}"));
     }
     if r.below(2) == 0 {
-        members.push(format!("\"check_limits\":{}", r.pick(&["true", "false"])));
+        members.push(format!("\"check_limits\":{}", pick(r, &["true", "false"])));
     }
     if r.below(2) == 0 {
-        let extra = r.pick(&[
-            "{\"a\":[1,{\"b\":\"]}\\\"\"}],\"configurations\":[[1]]}",
-            "[[0.5],[],\"x,\"]",
-            "null",
-            "-1.5e3",
-            "\"\\\\\"",
-        ]);
-        members.push(format!("\"extra\":{}{extra}", r.pick(WS)));
+        let extra = pick(
+            r,
+            &[
+                "{\"a\":[1,{\"b\":\"]}\\\"\"}],\"configurations\":[[1]]}",
+                "[[0.5],[],\"x,\"]",
+                "null",
+                "-1.5e3",
+                "\"\\\\\"",
+            ],
+        );
+        members.push(format!("\"extra\":{}{extra}", pick(r, WS)));
     }
     let n = members.len();
     for i in 0..n {
@@ -140,15 +138,15 @@ fn body(r: &mut Rng) -> String {
     }
     format!(
         "{}{{{}}}{}",
-        r.pick(WS),
-        members.join(&format!("{},{}", r.pick(WS), r.pick(WS))),
-        r.pick(WS)
+        pick(r, WS),
+        members.join(&format!("{},{}", pick(r, WS), pick(r, WS))),
+        pick(r, WS)
     )
 }
 
 #[test]
 fn random_bodies_read_the_same_and_take_the_fast_path() {
-    let mut r = Rng(SplitMix64(7));
+    let mut r = SplitMix64(7);
     for _ in 0..5000 {
         let b = body(&mut r);
         assert!(
@@ -162,7 +160,7 @@ fn random_bodies_read_the_same_and_take_the_fast_path() {
 #[test]
 fn corrupted_bodies_give_the_same_value_or_the_same_error() {
     const BYTES: &[u8] = b"\",][}{0-.eE+\\a 1:n";
-    let mut r = Rng(SplitMix64(11));
+    let mut r = SplitMix64(11);
     let (mut ok, mut err) = (0, 0);
     for _ in 0..20_000 {
         let mut b = body(&mut r).into_bytes();
