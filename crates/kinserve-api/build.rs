@@ -36,6 +36,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "crate::wire::JointConfiguration",
         )
         .extern_path(".kinematics.v1.PackedPoses", "crate::wire::PackedPoses")
+        .extern_path(
+            ".kinematics.v1.PackedConfigurations",
+            "crate::wire::PackedConfigurations",
+        )
         // Rarely set, large submessages of the stream messages are boxed, so
         // that every FK reply moved through the stream's queue is small
         // (696 → ~200 bytes; the moves were ~15 % of a stream's server time).

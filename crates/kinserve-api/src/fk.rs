@@ -46,11 +46,108 @@ impl TryFrom<pb::ForwardKinematicsBatchRequest> for FkBatchSpec {
             ));
         }
         Ok(FkBatchSpec {
-            configurations: configurations(&r.configurations),
+            configurations: batch_configurations(&r.configurations, r.packed_configurations)?,
             options,
             pose_format,
         })
     }
+}
+
+/// A batch request whose configurations come as the repeated
+/// `configurations` or as `packed_configurations`.
+pub trait ConfigurationBatch {
+    /// How many configurations it holds, before any check: packed values
+    /// are counted per `joint_count` (per value when that is 0), so that a
+    /// batch limit applies to a message whose count is wrong too.
+    fn configuration_count(&self) -> usize;
+
+    /// The packed configurations' `joint_count` against the robot's `dof`,
+    /// once the robot is known; invalid, naming
+    /// `packed_configurations.joint_count`, when they differ.
+    fn check_joint_count(&self, dof: usize) -> Result<()>;
+}
+
+macro_rules! configuration_batch {
+    ($message:ty) => {
+        impl ConfigurationBatch for $message {
+            fn configuration_count(&self) -> usize {
+                count(&self.configurations, self.packed_configurations.as_ref())
+            }
+            fn check_joint_count(&self, dof: usize) -> Result<()> {
+                joint_count_is(self.packed_configurations.as_ref(), dof)
+            }
+        }
+    };
+}
+
+configuration_batch!(pb::ForwardKinematicsBatchRequest);
+configuration_batch!(pb::JacobianBatchRequest);
+
+fn count(rows: &[pb::JointConfiguration], packed: Option<&pb::PackedConfigurations>) -> usize {
+    let packed = packed.map_or(0, |p| p.values.len() / (p.joint_count as usize).max(1));
+    rows.len().saturating_add(packed)
+}
+
+fn joint_count_is(packed: Option<&pb::PackedConfigurations>, dof: usize) -> Result<()> {
+    match packed {
+        Some(p) if p.joint_count as usize != dof && !p.values.is_empty() => {
+            Err(ModelError::invalid_field(
+                "packed_configurations.joint_count",
+                format!(
+                    "{} values per configuration, but the robot has {dof} joints: set joint_count \
+                     to {dof} and pack {dof} values per configuration",
+                    p.joint_count
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The configurations of a batch message in one buffer: the repeated
+/// `configurations` copied back to back, or `packed_configurations` as they
+/// are (not both: malformed, naming `packed_configurations`; values that
+/// are not a whole number of `joint_count` ones: malformed, naming
+/// `packed_configurations.values`).
+///
+/// ```
+/// use kinserve_api::{batch_configurations, pb};
+/// let packed = pb::PackedConfigurations { joint_count: 2, values: vec![0.1, 0.2, 0.3, 0.4] };
+/// let c = batch_configurations(&[], Some(packed)).unwrap();
+/// assert_eq!((c.len(), c.lens.as_slice()), (2, [2, 2].as_slice()));
+/// let odd = pb::PackedConfigurations { joint_count: 3, values: vec![0.1, 0.2, 0.3, 0.4] };
+/// assert!(batch_configurations(&[], Some(odd)).is_err());
+/// ```
+pub fn batch_configurations(
+    rows: &[pb::JointConfiguration],
+    packed: Option<pb::PackedConfigurations>,
+) -> Result<Configurations> {
+    let Some(p) = packed else {
+        return Ok(configurations(rows));
+    };
+    if !rows.is_empty() {
+        return Err(ModelError::malformed_field(
+            "packed_configurations",
+            "give the configurations either as `configurations` or as `packed_configurations`, \
+             not both",
+        ));
+    }
+    let k = p.joint_count as usize;
+    if !p.values.len().is_multiple_of(k.max(1)) || (k == 0 && !p.values.is_empty()) {
+        return Err(ModelError::malformed_field(
+            "packed_configurations.values",
+            format!(
+                "{} values is not a whole number of configurations of joint_count = {k} values \
+                 (set joint_count to the robot's number of joints)",
+                p.values.len()
+            ),
+        ));
+    }
+    let n = p.values.len().checked_div(k).unwrap_or(0);
+    Ok(Configurations {
+        values: p.values,
+        lens: vec![p.joint_count; n],
+    })
 }
 
 /// The configurations of a batch message, back to back in one buffer.

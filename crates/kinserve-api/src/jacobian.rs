@@ -7,7 +7,7 @@ use kinserve_model::{
     JacobianAnswer, JacobianBatchSpec, JacobianSpec, ModelError, ReferenceFrame, Result,
 };
 
-use crate::fk::{FkOptionsExt, configurations};
+use crate::fk::{FkOptionsExt, batch_configurations};
 use crate::pb;
 use crate::pose::pose_to_pb;
 
@@ -30,7 +30,7 @@ impl TryFrom<pb::JacobianBatchRequest> for JacobianBatchSpec {
         let frame = frame_from_pb(r.frame, "frame")?;
         let (options, _, _) = r.options.read()?;
         Ok(JacobianBatchSpec {
-            configurations: configurations(&r.configurations),
+            configurations: batch_configurations(&r.configurations, r.packed_configurations)?,
             options,
             frame,
         })

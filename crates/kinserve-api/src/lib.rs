@@ -53,7 +53,10 @@ pub use batch::{
     jacobian_stride, jacobians_to_le, packed_count, packed_format, poses_to_le,
 };
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
-pub use fk::{FkOptionsExt, configurations, options_from_pb, pose_format_from_pb};
+pub use fk::{
+    ConfigurationBatch, FkOptionsExt, batch_configurations, configurations, options_from_pb,
+    pose_format_from_pb,
+};
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};
 pub use jacobian::{frame_from_pb, frame_to_pb};
@@ -66,7 +69,7 @@ pub use urdf::import_convention_from_pb;
 #[allow(missing_docs, clippy::all)]
 pub mod pb {
     tonic::include_proto!("kinematics.v1");
-    pub use crate::wire::{JointConfiguration, PackedPoses};
+    pub use crate::wire::{JointConfiguration, PackedConfigurations, PackedPoses};
     /// Encoded file descriptor set of `kinematics.v1` and `google.rpc` (served
     /// by reflection, so tools such as grpcurl decode the error details).
     pub const FILE_DESCRIPTOR_SET: &[u8] =

@@ -1,8 +1,8 @@
-//! The two protobuf messages that carry a batch's numbers, written by hand in
-//! place of prost's generated code (`extern_path` in `build.rs`; re-exported
-//! as `pb::JointConfiguration` and `pb::PackedPoses`): the same wire format
-//! and the same Rust fields, but their packed `double` fields are read and
-//! written in bulk.
+//! The three protobuf messages that carry a batch's numbers, written by hand
+//! in place of prost's generated code (`extern_path` in `build.rs`;
+//! re-exported as `pb::JointConfiguration`, `pb::PackedConfigurations` and
+//! `pb::PackedPoses`): the same wire format and the same Rust fields, but
+//! their packed `double` fields are read and written in bulk.
 //!
 //! prost decodes a packed field one value at a time (a bounds check, a read
 //! and a `Vec::push` that grows the vector by doubling) and encodes it the
@@ -16,7 +16,7 @@
 //! Every other case — a field sent unpacked, a length that is not a whole
 //! number of doubles or runs past the message, an unknown field — goes
 //! through prost's own functions, so errors and merging rules are prost's
-//! (tests decode and encode against prost-derived twins of both messages).
+//! (tests decode and encode against prost-derived twins of the messages).
 //!
 //! Depends on prost and bytes only (not on [`crate::pb`], which depends on it).
 
@@ -38,6 +38,17 @@ pub struct PackedPoses {
     /// or `POSE_FORMAT_POSITION`), field 1.
     pub format: i32,
     /// `k` numbers per pose, pose after pose, field 2.
+    pub values: Vec<f64>,
+}
+
+/// Joint configurations packed into one field
+/// (`kinematics.v1.PackedConfigurations`).
+#[derive(Clone, PartialEq, Default, Debug)]
+pub struct PackedConfigurations {
+    /// Values per configuration (the robot's joint count), field 1.
+    pub joint_count: u32,
+    /// `joint_count` values per configuration, configuration after
+    /// configuration, field 2.
     pub values: Vec<f64>,
 }
 
@@ -72,50 +83,61 @@ impl Message for JointConfiguration {
     }
 }
 
-impl Message for PackedPoses {
-    fn encode_raw(&self, buf: &mut impl BufMut) {
-        if self.format != 0 {
-            encoding::int32::encode(1, &self.format, buf);
+/// `Message` for a message of one scalar field 1 (`$field`, of prost's
+/// encoding `$codec`, omitted when 0) and the packed `double` field 2
+/// (`values`): `PackedPoses` and `PackedConfigurations`.
+macro_rules! scalar_and_values {
+    ($name:ident, $field:ident, $codec:ident) => {
+        impl Message for $name {
+            fn encode_raw(&self, buf: &mut impl BufMut) {
+                if self.$field != 0 {
+                    encoding::$codec::encode(1, &self.$field, buf);
+                }
+                put_packed(2, &self.values, buf);
+            }
+
+            fn merge_field(
+                &mut self,
+                tag: u32,
+                wire_type: WireType,
+                buf: &mut impl Buf,
+                ctx: DecodeContext,
+            ) -> Result<(), DecodeError> {
+                let message = stringify!($name);
+                match tag {
+                    1 => in_field(
+                        encoding::$codec::merge(wire_type, &mut self.$field, buf, ctx),
+                        message,
+                        stringify!($field),
+                    ),
+                    2 => in_field(
+                        merge_packed(wire_type, &mut self.values, buf, ctx),
+                        message,
+                        "values",
+                    ),
+                    _ => encoding::skip_field(wire_type, tag, buf, ctx),
+                }
+            }
+
+            fn encoded_len(&self) -> usize {
+                let head = if self.$field != 0 {
+                    encoding::$codec::encoded_len(1, &self.$field)
+                } else {
+                    0
+                };
+                head + encoding::double::encoded_len_packed(2, &self.values)
+            }
+
+            fn clear(&mut self) {
+                self.$field = 0;
+                self.values.clear();
+            }
         }
-        put_packed(2, &self.values, buf);
-    }
-
-    fn merge_field(
-        &mut self,
-        tag: u32,
-        wire_type: WireType,
-        buf: &mut impl Buf,
-        ctx: DecodeContext,
-    ) -> Result<(), DecodeError> {
-        match tag {
-            1 => in_field(
-                encoding::int32::merge(wire_type, &mut self.format, buf, ctx),
-                "PackedPoses",
-                "format",
-            ),
-            2 => in_field(
-                merge_packed(wire_type, &mut self.values, buf, ctx),
-                "PackedPoses",
-                "values",
-            ),
-            _ => encoding::skip_field(wire_type, tag, buf, ctx),
-        }
-    }
-
-    fn encoded_len(&self) -> usize {
-        let format = if self.format != 0 {
-            encoding::int32::encoded_len(1, &self.format)
-        } else {
-            0
-        };
-        format + encoding::double::encoded_len_packed(2, &self.values)
-    }
-
-    fn clear(&mut self) {
-        self.format = 0;
-        self.values.clear();
-    }
+    };
 }
+
+scalar_and_values!(PackedPoses, format, int32);
+scalar_and_values!(PackedConfigurations, joint_count, uint32);
 
 /// `result` with its error, if any, marked as found in `message.field` (what
 /// prost's derived code adds to an error).
@@ -216,6 +238,14 @@ mod tests {
         values: Vec<f64>,
     }
 
+    #[derive(Clone, PartialEq, prost::Message)]
+    struct ProstPackedConfigurations {
+        #[prost(uint32, tag = "1")]
+        joint_count: u32,
+        #[prost(double, repeated, tag = "2")]
+        values: Vec<f64>,
+    }
+
     /// Values of every kind a double can be, `n` of them.
     fn values(n: usize, seed: u64) -> Vec<f64> {
         let special = [
@@ -239,6 +269,11 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// Whether `a` and `b` hold the same values bit for bit.
+    fn same_bits(a: &[f64], b: &[f64]) -> bool {
+        a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
     }
 
     /// A buffer of two pieces, split at `at`: values straddle the seam.
@@ -271,6 +306,18 @@ mod tests {
                 );
                 assert_eq!(ours.encoded_len(), theirs.encoded_len());
             }
+            for joint_count in [0, 6, 300] {
+                let ours = PackedConfigurations {
+                    joint_count,
+                    values: v.clone(),
+                };
+                let theirs = ProstPackedConfigurations {
+                    joint_count,
+                    values: v.clone(),
+                };
+                assert_eq!(ours.encode_to_vec(), theirs.encode_to_vec());
+                assert_eq!(ours.encoded_len(), theirs.encoded_len());
+            }
         }
     }
 
@@ -294,6 +341,16 @@ mod tests {
                         .zip(&v)
                         .all(|(a, b)| a.to_bits() == b.to_bits())
                 );
+            }
+            let bytes = ProstPackedConfigurations {
+                joint_count: 7,
+                values: v.clone(),
+            }
+            .encode_to_vec();
+            for at in [1, 2, 9, bytes.len() / 2] {
+                let ours = PackedConfigurations::decode(split(&bytes, at)).unwrap();
+                assert_eq!(ours.joint_count, 7);
+                assert!(ours.values.len() == n && same_bits(&ours.values, &v));
             }
             let bytes = ProstJointConfiguration { joints: v.clone() }.encode_to_vec();
             let ours = JointConfiguration::decode(split(&bytes, 5)).unwrap();

@@ -35,6 +35,8 @@ pub enum Target {
     Grpc,
     /// gRPC `ForwardKinematicsBatch`.
     GrpcBatch,
+    /// The same batch with its configurations in `packed_configurations`.
+    GrpcBatchPacked,
     /// gRPC `StreamForwardKinematics`, `--pipeline` messages in flight per stream.
     GrpcStream,
     /// `GET /healthz` (baseline).
@@ -45,7 +47,7 @@ pub enum Target {
 
 impl Target {
     /// Every target, in table order.
-    pub const ALL: [Target; 9] = [
+    pub const ALL: [Target; 10] = [
         Target::RestHealth,
         Target::Rest,
         Target::RestBatch,
@@ -54,6 +56,7 @@ impl Target {
         Target::GrpcHealth,
         Target::Grpc,
         Target::GrpcBatch,
+        Target::GrpcBatchPacked,
         Target::GrpcStream,
     ];
 
@@ -66,6 +69,7 @@ impl Target {
             Target::Ws => "ws",
             Target::Grpc => "grpc",
             Target::GrpcBatch => "grpc-batch",
+            Target::GrpcBatchPacked => "grpc-batch-packed",
             Target::GrpcStream => "grpc-stream",
             Target::RestHealth => "rest-health",
             Target::GrpcHealth => "grpc-health",
@@ -75,7 +79,10 @@ impl Target {
     fn is_batch(self) -> bool {
         matches!(
             self,
-            Target::RestBatch | Target::RestBatchPacked | Target::GrpcBatch
+            Target::RestBatch
+                | Target::RestBatchPacked
+                | Target::GrpcBatch
+                | Target::GrpcBatchPacked
         )
     }
 
@@ -83,7 +90,11 @@ impl Target {
     pub fn is_grpc(self) -> bool {
         matches!(
             self,
-            Target::Grpc | Target::GrpcBatch | Target::GrpcStream | Target::GrpcHealth
+            Target::Grpc
+                | Target::GrpcBatch
+                | Target::GrpcBatchPacked
+                | Target::GrpcStream
+                | Target::GrpcHealth
         )
     }
 }

@@ -166,6 +166,29 @@ fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<
 /// as little-endian float64, the answer's poses cut into matrices (12
 /// numbers, `[0, 0, 0, 1]` added for `full`, which is answered as `matrix`)
 /// or positions.
+/// The gRPC batch request of `q` (`dof` values per configuration): one
+/// `JointConfiguration` per configuration, or all of them in
+/// `packed_configurations` for `grpc-batch-packed`.
+fn grpc_batch(args: &super::LoadArgs, q: &[f64], dof: usize) -> pb::ForwardKinematicsBatchRequest {
+    let mut req = pb::ForwardKinematicsBatchRequest {
+        robot: args.robot.clone(),
+        options: args.pose_format.pb_options(),
+        ..Default::default()
+    };
+    if args.target == Target::GrpcBatchPacked {
+        req.packed_configurations = Some(pb::PackedConfigurations {
+            joint_count: u32::try_from(dof).unwrap_or(u32::MAX),
+            values: q.to_vec(),
+        });
+    } else {
+        req.configurations = q
+            .chunks(dof.max(1))
+            .map(|c| pb::JointConfiguration { joints: c.to_vec() })
+            .collect();
+    }
+    req
+}
+
 async fn rest_packed(
     http: &reqwest::Client,
     args: &super::LoadArgs,
@@ -377,7 +400,10 @@ async fn unary_worker(
 ) -> Result<(), String> {
     let args = &plan.args;
     let http = rest_client();
-    let mut grpc = if matches!(args.target, Target::Grpc | Target::GrpcBatch) {
+    let mut grpc = if matches!(
+        args.target,
+        Target::Grpc | Target::GrpcBatch | Target::GrpcBatchPacked
+    ) {
         Some(grpc_client(plan).await?)
     } else {
         None
@@ -503,18 +529,11 @@ async fn unary_worker(
                     Err(s) => Err(format!("grpc_{:?}", s.code())),
                 }
             }
-            Target::GrpcBatch => {
+            Target::GrpcBatch | Target::GrpcBatchPacked => {
                 let Some(c) = grpc.as_mut() else {
                     return Err("no grpc client".into());
                 };
-                let req = pb::ForwardKinematicsBatchRequest {
-                    robot: args.robot.clone(),
-                    configurations: q
-                        .chunks(dof.max(1))
-                        .map(|c| pb::JointConfiguration { joints: c.to_vec() })
-                        .collect(),
-                    options: args.pose_format.pb_options(),
-                };
+                let req = grpc_batch(args, &q, dof);
                 match c.forward_kinematics_batch(req).await {
                     Ok(r) => {
                         let r = r.into_inner();

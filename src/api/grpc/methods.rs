@@ -18,7 +18,7 @@ use crate::model::{
 use crate::registry::{Condition, Entry, Origin, PutMode};
 use crate::service::FkAnswer;
 use crate::telemetry::{Protocol, StreamGuard};
-use kinserve_api::{PbConfigOp, packed_to_pb, pose_to_pb};
+use kinserve_api::{ConfigurationBatch, PbConfigOp, packed_to_pb, pose_to_pb};
 use std::future::Future;
 use std::pin::Pin;
 
@@ -258,8 +258,10 @@ impl KinematicsService for GrpcService {
     ) -> Result<Response<pb::ForwardKinematicsBatchResponse>, Status> {
         let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
-        self.service.check_batch_size(req.configurations.len())?;
+        self.service.check_batch_size(req.configuration_count())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
+        req.check_joint_count(entry.robot.dof())
+            .map_err(Error::from)?;
         let spec = FkBatchSpec::try_from(req).map_err(Error::from)?;
         let (poses, spec) = self
             .service
@@ -338,8 +340,10 @@ impl KinematicsService for GrpcService {
     ) -> Result<Response<pb::JacobianBatchResponse>, Status> {
         let (client, _permit) = self.admit(&req)?;
         let req = req.into_inner();
-        self.service.check_batch_size(req.configurations.len())?;
+        self.service.check_batch_size(req.configuration_count())?;
         let entry = self.service.robot_at(&req.robot, "robot")?;
+        req.check_joint_count(entry.robot.dof())
+            .map_err(Error::from)?;
         let spec = JacobianBatchSpec::try_from(req).map_err(Error::from)?;
         let answers = self
             .service

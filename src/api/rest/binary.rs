@@ -46,7 +46,7 @@ use crate::model::{
     JacobianBatchSpec, PoseFormat, ReferenceFrame, Robot,
 };
 use crate::service::Service;
-use kinserve_api::pb;
+use kinserve_api::{ConfigurationBatch, pb};
 
 /// The protobuf media type: the gRPC method's own messages.
 pub const PROTOBUF: &str = "application/x-protobuf";
@@ -205,6 +205,11 @@ pub trait BatchKind: Send {
     }
     /// The message's robot name and number of items (configurations, targets).
     fn proto_head(msg: &Self::Proto) -> (&str, usize);
+    /// What the message says that only the robot can check (the packed
+    /// configurations' `joint_count`).
+    fn check_proto(_msg: &Self::Proto, _dof: usize) -> Result<(), Error> {
+        Ok(())
+    }
     /// The message as a request.
     fn from_proto(msg: Self::Proto) -> Result<Self::Spec, Error>;
     /// A packed body's configurations and its query as a request.
@@ -296,6 +301,7 @@ impl<K: BatchKind> BatchBody<K> {
                     ));
                 }
                 service.check_batch_size(items)?;
+                K::check_proto(&msg, robot.dof())?;
                 K::from_proto(msg)
             }
             BatchRequest::Packed(bytes, query) => {
@@ -351,7 +357,10 @@ impl BatchKind for FkBatch {
         parse_object_rows(bytes, |r: &mut FkBatchRequest| &mut r.configurations)
     }
     fn proto_head(msg: &Self::Proto) -> (&str, usize) {
-        (&msg.robot, msg.configurations.len())
+        (&msg.robot, msg.configuration_count())
+    }
+    fn check_proto(msg: &Self::Proto, dof: usize) -> Result<(), Error> {
+        Ok(msg.check_joint_count(dof)?)
     }
     fn from_proto(msg: Self::Proto) -> Result<FkBatchSpec, Error> {
         Ok(FkBatchSpec::try_from(msg)?)
@@ -381,7 +390,10 @@ impl BatchKind for JacobianBatch {
         parse_object_rows(bytes, |r: &mut JacobianBatchRequest| &mut r.configurations)
     }
     fn proto_head(msg: &Self::Proto) -> (&str, usize) {
-        (&msg.robot, msg.configurations.len())
+        (&msg.robot, msg.configuration_count())
+    }
+    fn check_proto(msg: &Self::Proto, dof: usize) -> Result<(), Error> {
+        Ok(msg.check_joint_count(dof)?)
     }
     fn from_proto(msg: Self::Proto) -> Result<JacobianBatchSpec, Error> {
         Ok(JacobianBatchSpec::try_from(msg)?)

@@ -90,6 +90,7 @@ async fn batches_keep_request_order_in_every_format_over_rest_and_grpc() {
                     .map(|c| pb::JointConfiguration { joints: c.clone() })
                     .collect(),
                 options: format_options(format, false),
+                ..Default::default()
             };
             let r = client
                 .forward_kinematics_batch(req)
@@ -167,6 +168,7 @@ async fn an_unknown_pose_format_is_a_parse_error_naming_the_field_on_every_door(
                 joints: vec![0.0, 0.0],
             }],
             options: bad,
+            ..Default::default()
         })
         .await
         .unwrap_err();

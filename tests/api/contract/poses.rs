@@ -385,6 +385,7 @@ async fn batches_agree_with_single_requests_over_rest_and_grpc() {
                     o.frames = Some(false);
                     o
                 }),
+                ..Default::default()
             })
             .await
             .unwrap()

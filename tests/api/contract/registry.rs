@@ -397,6 +397,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
                 joints: vec![0.0, 0.0],
             }],
             options: None,
+            ..Default::default()
         })
         .await,
     );
@@ -430,6 +431,7 @@ async fn registry_errors_have_the_same_class_over_rest_and_grpc() {
                 angle_unit: pb::AngleUnit::Deg as i32,
                 ..Default::default()
             }),
+            ..Default::default()
         })
         .await,
     );
@@ -504,6 +506,7 @@ async fn auth_and_size_limits_have_the_same_class_over_rest_and_grpc() {
                 4
             ],
             options: None,
+            ..Default::default()
         })
         .await,
     );
@@ -531,6 +534,7 @@ async fn auth_and_size_limits_have_the_same_class_over_rest_and_grpc() {
             robot: "puma560".into(),
             configurations: vec![pb::JointConfiguration { joints }],
             options: None,
+            ..Default::default()
         })
         .await,
     );

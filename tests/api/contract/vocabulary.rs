@@ -67,6 +67,7 @@ async fn frames_in_a_batch_are_refused_on_both_protocols() {
                     joints: vec![0.0, 0.0],
                 }],
                 options: Some(options),
+                ..Default::default()
             })
             .await
             .unwrap_err();

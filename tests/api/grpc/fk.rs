@@ -214,6 +214,7 @@ async fn batch_poses_come_in_request_order_and_match_unary() {
                 .map(|q| pb::JointConfiguration { joints: q.clone() })
                 .collect(),
             options: deg(),
+            ..Default::default()
         })
         .await
         .unwrap()
@@ -235,6 +236,7 @@ async fn batch_poses_come_in_request_order_and_match_unary() {
             robot: "stanford".into(),
             configurations: vec![],
             options: None,
+            ..Default::default()
         })
         .await
         .unwrap()
@@ -253,6 +255,7 @@ async fn batch_errors_name_the_configuration() {
             .map(|joints| pb::JointConfiguration { joints })
             .collect(),
         options: deg(),
+        ..Default::default()
     };
     let ok = vec![0.0; 6];
 
@@ -313,6 +316,7 @@ async fn messages_over_the_size_limit_are_resource_exhausted() {
             5_000
         ],
         options: None,
+        ..Default::default()
     };
     assert!(big.encoded_len() > 64 << 10);
     let err = c.forward_kinematics_batch(big).await.unwrap_err();

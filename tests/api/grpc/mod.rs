@@ -13,6 +13,7 @@ mod grpcurl;
 mod health;
 mod ik_objectives;
 mod ik_solutions;
+mod packed;
 mod registry;
 mod stream;
 mod stream_batch;

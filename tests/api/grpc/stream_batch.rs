@@ -113,6 +113,7 @@ async fn a_multi_configuration_reply_equals_the_unary_batch_byte_for_byte() {
                     robot: robot.to_string(),
                     configurations: rows(configs),
                     options,
+                    ..Default::default()
                 })
                 .await
                 .unwrap()

@@ -406,6 +406,7 @@ async fn batches_answer_in_request_order_like_rest() {
                 .collect(),
             options: None,
             frame: pb::JacobianFrame::Tool as i32,
+            ..Default::default()
         })
         .await
         .unwrap()

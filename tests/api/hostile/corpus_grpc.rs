@@ -235,6 +235,7 @@ async fn run_grpc_case(
                     robot: case["robot"].as_str().unwrap().to_owned(),
                     configurations: configurations.clone(),
                     options: None,
+                    ..Default::default()
                 })
                 .await;
             if let Ok(a) = &answer {

@@ -162,6 +162,7 @@ async fn grpc_flood(app: &TestApp) -> Vec<tokio::task::JoinHandle<Flood>> {
                         robot: "puma560".into(),
                         configurations,
                         options: None,
+                        ..Default::default()
                     })
                     .await;
                 match r {

@@ -126,6 +126,7 @@ fn fk_message(robot: &str, qs: &[Vec<f64>], format: &str) -> pb::ForwardKinemati
             pose_format: pb_format(format),
             ..Default::default()
         }),
+        ..Default::default()
     }
 }
 
