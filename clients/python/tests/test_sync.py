@@ -215,3 +215,22 @@ def test_writes_without_the_token_are_unauthenticated(server: Server, transport:
     with kc.Client(server.address(transport), transport=transport) as anonymous:  # type: ignore[arg-type]
         e = _error(lambda: anonymous.register(planar_model(_name(transport, "anon"))))
     assert isinstance(e, kc.Unauthenticated) and e.kind == "unauthenticated"
+
+
+def test_grpc_batches_send_packed_configurations() -> None:
+    """The gRPC batches' configurations go as ``packed_configurations`` (one
+    block of doubles), which the generated message reads back as sent; an
+    answer shorter than the batch (a server that ignores the field) is an
+    error, not a short array."""
+    from kinserve_client import _grpc
+    from kinserve_client._pb.kinematics.v1 import kinematics_pb2 as pb
+
+    q = np.random.default_rng(3).uniform(-1.0, 1.0, size=(5, 7))
+    msg = pb.ForwardKinematicsBatchRequest.FromString(_grpc.packed_configurations(4, q))
+    assert msg.packed_configurations.joint_count == 7 and not msg.configurations
+    assert np.array_equal(np.asarray(msg.packed_configurations.values), q.ravel())
+    jac = pb.JacobianBatchRequest.FromString(_grpc.packed_configurations(5, q[:0]))
+    assert jac.HasField("packed_configurations") and not jac.packed_configurations.values
+    with pytest.raises(kc.KinserveError, match="packed_configurations") as e:
+        _grpc.answered(np.zeros((0, 3)), 5, "poses")
+    assert e.value.code == "UNIMPLEMENTED"

@@ -13,7 +13,7 @@ types, not on REST.
 from __future__ import annotations
 
 import os
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence, Sized, TypeVar
 
 import numpy as np
 
@@ -42,6 +42,7 @@ from ._pbconv import (
     target_to_pb,
 )
 from ._rest import ik_batch as ik_batch_arrays
+from .errors import KinserveError
 from .types import (
     JSON,
     AngleUnit,
@@ -104,6 +105,35 @@ def nested_rows(fields: list[int], rows: Array) -> bytes:
     buf[:, : len(header)] = np.frombuffer(header, dtype=np.uint8)
     buf[:, len(header) :] = np.ascontiguousarray(rows, dtype="<f8").view(np.uint8).reshape(n, 8 * k)
     return buf.tobytes()
+
+
+def packed_configurations(field: int, rows: Array) -> bytes:
+    """Wire bytes of ``PackedConfigurations { joint_count, values }`` as the
+    batch request's field ``field``: the (N, dof) rows in one packed double
+    field, one copy of the array (the server reads it in one block too)."""
+    n, k = rows.shape
+    data = np.ascontiguousarray(rows, dtype="<f8").tobytes()
+    inner = _tag(1, 0) + _varint(k) if k else b""
+    if n:
+        inner += _tag(2, 2) + _varint(len(data)) + data
+    return _tag(field, 2) + _varint(len(inner)) + inner
+
+
+S = TypeVar("S", bound=Sized)
+
+
+def answered(values: S, n: int, what: str) -> S:
+    """``values`` when they hold ``n`` answers; else the server ignored
+    ``packed_configurations`` (a server older than the field answers an
+    empty batch): an error saying so instead of a silently short answer."""
+    if len(values) != n:
+        raise KinserveError(
+            code="UNIMPLEMENTED",
+            detail=f"{len(values)} {what} for {n} configurations: the server does not read "
+            "packed_configurations (older than this client); upgrade the server",
+            transport="grpc",
+        )
+    return values
 
 
 def position_targets(field: int, rows: Array) -> bytes:
@@ -341,12 +371,12 @@ class GrpcOps:
         head = pb.ForwardKinematicsBatchRequest(
             robot=robot, options=_options(angle_unit, check_limits, None, wire)
         )
-        request = head.SerializeToString() + nested_rows([2, 1], q)
+        request = head.SerializeToString() + packed_configurations(4, q)
 
         def parse(r: Any) -> Array:
             if wire == "position":
-                return _packed(r.packed_poses, 3)
-            top = _f(r.packed_poses.values).reshape(-1, 3, 4)
+                return answered(_packed(r.packed_poses, 3), len(q), "poses")
+            top = answered(_f(r.packed_poses.values).reshape(-1, 3, 4), len(q), "poses")
             return top if pose_format == "matrix" else pad_rows(top)
 
         return GrpcCall("ForwardKinematicsBatch", request, pb.ForwardKinematicsBatchResponse, parse)
@@ -388,10 +418,10 @@ class GrpcOps:
             options=_options(angle_unit, check_limits),
             frame=enum_value(pb.JacobianFrame, frame),
         )
-        request = head.SerializeToString() + nested_rows([2, 1], q)
+        request = head.SerializeToString() + packed_configurations(5, q)
 
         def parse(r: Any) -> JacobianBatch:
-            res = r.results
+            res = answered(r.results, len(q), "Jacobians")
             n = len(res)
             return JacobianBatch(
                 robot=r.robot,
