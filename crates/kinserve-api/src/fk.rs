@@ -1,6 +1,8 @@
 //! FK on the wire: `pb::FkOptions` and the FK requests → [`FkSpec`] /
 //! [`FkBatchSpec`] (field paths as REST's: `options.angle_unit`,
-//! `options.pose_format`, `configurations[3][1]` after validation). Depends on
+//! `options.pose_format`, `configurations[3][1]` after validation), and the
+//! configurations of the batch messages, repeated or packed
+//! ([`batch_configurations`], [`ConfigurationBatch`]). Depends on
 //! the model and [`crate::pb`] only.
 
 use kinserve_model::{
