@@ -49,6 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // The paths too (336 and 112 bytes inline): with them every FK
         // message and reply was 448 bytes, moved several times per message.
         .boxed(".kinematics.v1.StreamForwardKinematicsRequest.ik_path")
+        .boxed(".kinematics.v1.StreamForwardKinematicsRequest.packed_configurations")
         .boxed(".kinematics.v1.StreamForwardKinematicsResponse.ik_path")
         // The full pose (168 bytes) in the reply's oneof, and the packed
         // frames and poses (32 each) the other messages carry: inline, they

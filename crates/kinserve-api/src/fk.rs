@@ -70,20 +70,22 @@ pub trait ConfigurationBatch {
 }
 
 macro_rules! configuration_batch {
-    ($message:ty) => {
+    ($message:ty, $packed:ident) => {
         impl ConfigurationBatch for $message {
             fn configuration_count(&self) -> usize {
-                count(&self.configurations, self.packed_configurations.as_ref())
+                count(&self.configurations, self.packed_configurations.$packed())
             }
             fn check_joint_count(&self, dof: usize) -> Result<()> {
-                joint_count_is(self.packed_configurations.as_ref(), dof)
+                joint_count_is(self.packed_configurations.$packed(), dof)
             }
         }
     };
 }
 
-configuration_batch!(pb::ForwardKinematicsBatchRequest);
-configuration_batch!(pb::JacobianBatchRequest);
+configuration_batch!(pb::ForwardKinematicsBatchRequest, as_ref);
+configuration_batch!(pb::JacobianBatchRequest, as_ref);
+// Boxed in the stream message (`build.rs`).
+configuration_batch!(pb::StreamForwardKinematicsRequest, as_deref);
 
 fn count(rows: &[pb::JointConfiguration], packed: Option<&pb::PackedConfigurations>) -> usize {
     let packed = packed.map_or(0, |p| p.values.len() / (p.joint_count as usize).max(1));

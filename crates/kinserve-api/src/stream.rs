@@ -1,12 +1,12 @@
 //! A gRPC stream message → the robot it names and the [`StreamOp`] it asks
 //! for (the same operation a WebSocket message converts into): FK of one
-//! configuration (`joints`), of many (`configurations`, answered as the FK
-//! batch), IK or a Cartesian path. Depends on the model, [`crate::fk`],
+//! configuration (`joints`), of many (`configurations` or
+//! `packed_configurations`, answered as the FK batch), IK or a Cartesian path. Depends on the model, [`crate::fk`],
 //! [`crate::jacobian`], [`crate::operations`] and [`crate::pb`].
 
 use kinserve_model::{FkBatchSpec, FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
 
-use crate::fk::{FkOptionsExt, configurations};
+use crate::fk::{FkOptionsExt, batch_configurations};
 use crate::jacobian::frame_from_pb;
 use crate::pb;
 
@@ -17,7 +17,7 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
     /// of `joints`, `configurations`, `ik`, `ik_path`; an `ik.robot` other
     /// than the message's is refused.
     fn try_from(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
-        if !msg.configurations.is_empty() {
+        if !msg.configurations.is_empty() || msg.packed_configurations.is_some() {
             return fk_batch(msg);
         }
         if let Some(path) = msg.ik_path {
@@ -76,9 +76,15 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
 /// configuration are refused naming their field.
 fn fk_batch(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
     if !msg.joints.is_empty() || msg.ik.is_some() || msg.ik_path.is_some() {
+        let field = if msg.configurations.is_empty() {
+            "packed_configurations"
+        } else {
+            "configurations"
+        };
         return Err(ModelError::invalid_field(
-            "configurations",
-            "give joints (FK), configurations (FK of many), ik or ik_path, one of them",
+            field,
+            "give joints (FK), configurations or packed_configurations (FK of many), ik or \
+             ik_path, one of them",
         ));
     }
     if msg.include_jacobian {
@@ -100,8 +106,9 @@ fn fk_batch(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
             "FK of many configurations returns tool poses only: send joints for frames",
         ));
     }
+    let packed = msg.packed_configurations.map(|p| *p);
     Ok(StreamOp::FkBatch(FkBatchSpec {
-        configurations: configurations(&msg.configurations),
+        configurations: batch_configurations(&msg.configurations, packed)?,
         options,
         pose_format,
     }))

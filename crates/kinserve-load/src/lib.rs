@@ -186,6 +186,10 @@ pub struct LoadArgs {
     /// gRPC's `poses`/`packed_poses`).
     #[arg(long, default_value_t = 1)]
     pub per_message: usize,
+    /// grpc-stream with `--per-message` above 1: send each message's
+    /// configurations as `packed_configurations` (one packed field).
+    #[arg(long)]
+    pub packed: bool,
     /// Seed of the random joint configurations (drawn within the joint limits).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -500,6 +504,13 @@ pub async fn run(args: LoadArgs) -> Result<Report, String> {
     }
     if !(1..=MAX_BATCH).contains(&args.per_message) {
         return Err(format!("--per-message must be from 1 to {MAX_BATCH}"));
+    }
+    if args.packed && (args.target != Target::GrpcStream || args.per_message < 2) {
+        return Err(
+            "--packed is for grpc-stream with --per-message above 1 (the batch's packed \
+             form is --target grpc-batch-packed)"
+                .into(),
+        );
     }
     if args.per_message > 1 && !matches!(args.target, Target::Ws | Target::GrpcStream) {
         return Err(format!(

@@ -605,6 +605,8 @@ enum Outbound {
         options: Option<pb::FkOptions>,
         /// Joints per configuration when a message carries many (else 0).
         many: usize,
+        /// Many configurations go as `packed_configurations` (`--packed`).
+        packed: bool,
     },
 }
 
@@ -619,6 +621,7 @@ impl Outbound {
                 robot,
                 options,
                 many,
+                packed,
             } => {
                 let mut req = pb::StreamForwardKinematicsRequest {
                     id,
@@ -628,6 +631,12 @@ impl Outbound {
                 };
                 match *many {
                     0 => req.joints = q,
+                    dof if *packed => {
+                        req.packed_configurations = Some(Box::new(pb::PackedConfigurations {
+                            joint_count: u32::try_from(dof).unwrap_or(u32::MAX),
+                            values: q,
+                        }))
+                    }
                     dof => {
                         req.configurations = q
                             .chunks(dof)
@@ -769,6 +778,7 @@ async fn grpc_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
         robot: args.robot.clone(),
         options: args.pose_format.pb_options(),
         many: many_of(plan),
+        packed: args.packed,
     };
     Ok((outbound, rrx))
 }

@@ -142,7 +142,7 @@ async fn assert_clean_report_of(
     let poses = report["poses"].as_u64().unwrap();
     match target {
         "rest-health" | "grpc-health" => assert_eq!(poses, 0),
-        "rest-batch" | "rest-batch-packed" | "grpc-batch" => {
+        "rest-batch" | "rest-batch-packed" | "grpc-batch" | "grpc-batch-packed" => {
             assert_eq!(poses, sent * 50, "{what}: poses per batch")
         }
         _ => assert_eq!(poses, sent * per_message, "{what}: poses per message"),
@@ -162,6 +162,7 @@ async fn every_load_target_runs_clean_with_verification() {
         "grpc-health",
         "grpc",
         "grpc-batch",
+        "grpc-batch-packed",
         "grpc-stream",
     ];
     for target in targets {
@@ -184,18 +185,26 @@ async fn compact_pose_formats_run_clean_with_verification_on_every_protocol() {
         "ws",
         "grpc",
         "grpc-batch",
+        "grpc-batch-packed",
         "grpc-stream",
     ] {
         run_clean(&app, target, "panda", "matrix").await;
     }
-    for target in ["rest-batch", "rest-batch-packed", "grpc-batch", "ws"] {
+    for target in [
+        "rest-batch",
+        "rest-batch-packed",
+        "grpc-batch",
+        "grpc-batch-packed",
+        "ws",
+    ] {
         run_clean(&app, target, "puma560", "position").await;
     }
 }
 
 /// `--per-message 5`: every stream message carries five configurations
-/// (`configurations`) and is answered with five poses, each verified, on the
-/// WebSocket and the gRPC stream, in the full and the compact formats.
+/// (`configurations`; on gRPC also `packed_configurations` with `--packed`)
+/// and is answered with five poses, each verified, on the WebSocket and the
+/// gRPC stream, in the full and the compact formats.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stream_messages_of_many_configurations_run_clean_with_verification() {
     let app = spawn_app().await;
@@ -211,6 +220,18 @@ async fn stream_messages_of_many_configurations_run_clean_with_verification() {
         cmd.args(["--pose-format", pose_format, "--per-message", "5"]);
         let what = format!("{target}/{robot}/{pose_format} x5");
         assert_clean_report_of(cmd, &what, target, pose_format, 5).await;
+    }
+    for (robot, pose_format) in [("panda", "matrix"), ("stanford", "full")] {
+        let mut cmd = load_command(&app, "grpc-stream", robot);
+        cmd.args([
+            "--pose-format",
+            pose_format,
+            "--per-message",
+            "5",
+            "--packed",
+        ]);
+        let what = format!("grpc-stream/{robot}/{pose_format} x5 packed");
+        assert_clean_report_of(cmd, &what, "grpc-stream", pose_format, 5).await;
     }
 }
 

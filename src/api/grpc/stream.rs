@@ -18,6 +18,7 @@ use crate::error::Error;
 use crate::model::{AngleUnit, StreamOp};
 use crate::service::StreamAnswer;
 use crate::telemetry::Protocol;
+use kinserve_api::ConfigurationBatch;
 use kinserve_api::{packed_to_pb, pose_to_pb};
 
 impl GrpcService {
@@ -59,10 +60,11 @@ impl GrpcService {
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         // Many configurations: refused over the batch limit before they are
         // copied, as ForwardKinematicsBatch refuses them.
-        if !msg.configurations.is_empty() {
-            self.service.check_batch_size(msg.configurations.len())?;
+        if !msg.configurations.is_empty() || msg.packed_configurations.is_some() {
+            self.service.check_batch_size(msg.configuration_count())?;
         }
         let entry = self.service.robot_at(&msg.robot, "robot")?;
+        msg.check_joint_count(entry.robot.dof())?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
         // A path answer names its units like InverseKinematicsPath's.

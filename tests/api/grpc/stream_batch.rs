@@ -293,3 +293,77 @@ async fn every_pose_of_a_multi_message_is_counted() {
     let after = count(app.get("/metrics").await.text().await.unwrap());
     assert_eq!(after - before, 37.0, "{SERIES}: {before} -> {after}");
 }
+
+#[tokio::test]
+async fn packed_configurations_answer_as_repeated_ones_and_are_checked() {
+    let app = spawn_app_with(|c| c.max_batch = 8).await;
+    let mut c = app.grpc_client().await;
+    let q = puma_deg(6);
+    let matrix = format_options(pb::PoseFormat::Matrix, true);
+    let packed = |id: u64, joint_count: u32, values: Vec<f64>| {
+        let mut m = multi(id, "puma560", &[], matrix);
+        m.packed_configurations = Some(Box::new(pb::PackedConfigurations {
+            joint_count,
+            values,
+        }));
+        m
+    };
+    // Both forms, 2 + 2 configurations (under the limit, which counts both).
+    let mut both = packed(3, 6, q[..2].concat());
+    both.configurations = rows(&q[..2]);
+    let mut with_joints = packed(4, 6, q.concat());
+    with_joints.joints = vec![0.0; 6];
+    let mut far = q.clone();
+    far[2][1] = 500.0;
+    let msgs = vec![
+        multi(0, "puma560", &q, matrix),
+        packed(1, 6, q.concat()),
+        packed(2, 7, q.concat()),
+        both,
+        with_joints,
+        packed(5, 6, far.concat()),
+        packed(6, 1, q.concat()),
+        packed(7, 6, Vec::new()),
+        packed(8, 6, q.concat()),
+    ];
+    let replies = exchange(&mut c, &msgs).await;
+    assert_eq!(replies.len(), msgs.len());
+    let body = |r: &pb::StreamForwardKinematicsResponse| {
+        let mut r = r.clone();
+        r.id = 0;
+        r.encode_to_vec()
+    };
+    assert!(replies[0].packed_poses.is_some(), "{:?}", replies[0]);
+    assert_eq!(body(&replies[1]), body(&replies[0]), "packed vs repeated");
+    assert_eq!(body(&replies[8]), body(&replies[0]), "after the errors");
+    let error = |i: usize| match &replies[i].result {
+        Some(StreamResult::Error(e)) => (e.code, rpc_status_fields(e)),
+        other => panic!("reply {i} should be an error: {other:?}"),
+    };
+    let invalid = Code::InvalidArgument as i32;
+    assert_eq!(
+        error(2),
+        (
+            invalid,
+            vec!["packed_configurations.joint_count".to_string()]
+        )
+    );
+    assert_eq!(
+        error(3),
+        (invalid, vec!["packed_configurations".to_string()])
+    );
+    assert_eq!(
+        error(4),
+        (invalid, vec!["packed_configurations".to_string()])
+    );
+    assert_eq!(
+        error(5),
+        (invalid, vec!["configurations[2][1]".to_string()])
+    );
+    // 36 values as 36 one-joint configurations: over the batch limit of 8.
+    let exhausted = Code::ResourceExhausted as i32;
+    assert_eq!(error(6), (exhausted, vec!["configurations".to_string()]));
+    // Present but empty: FK of no configuration.
+    assert!(replies[7].poses.is_empty(), "{:?}", replies[7]);
+    assert!(!matches!(replies[7].result, Some(StreamResult::Error(_))));
+}
