@@ -58,6 +58,40 @@ export interface ClientOptions {
 const MAX_RETRY_AFTER = 5;
 
 const URDF_IMPORT = "application/vnd.kinserve.urdf-import+json";
+const OCTETS = "application/octet-stream";
+
+/** The answer of {@link KinserveClient.fkBatchPacked}. */
+export interface PackedPoses {
+  /** `matrix` (12 numbers per pose) or `position` (3). */
+  poseFormat: "matrix" | "position";
+  /** Length unit of the positions (`m`, `mm`), from `Kinserve-Length-Unit`. */
+  lengthUnit: string;
+  /** Numbers per pose. */
+  stride: number;
+  /** Every pose's numbers, pose after pose. */
+  values: Float64Array;
+}
+
+/** Whether this platform stores doubles little-endian (every current one does). */
+const LITTLE_ENDIAN = new Uint8Array(new Float64Array([1]).buffer)[7] === 0x3f;
+
+/** Joint values as little-endian float64 bytes (a copy only when they are not already). */
+function toLittleEndian(q: Float64Array | readonly number[]): Uint8Array<ArrayBuffer> {
+  if (LITTLE_ENDIAN && q instanceof Float64Array && q.buffer instanceof ArrayBuffer) {
+    return new Uint8Array(q.buffer, q.byteOffset, q.byteLength);
+  }
+  const out = new DataView(new ArrayBuffer(q.length * 8));
+  for (let i = 0; i < q.length; i += 1) out.setFloat64(i * 8, q[i] ?? NaN, true);
+  return new Uint8Array(out.buffer);
+}
+
+/** Little-endian float64 bytes as numbers. */
+function fromLittleEndian(bytes: ArrayBuffer): Float64Array {
+  if (bytes.byteLength % 8 !== 0) throw new Error(`${bytes.byteLength} bytes is not a whole number of float64`);
+  if (LITTLE_ENDIAN) return new Float64Array(bytes);
+  const view = new DataView(bytes);
+  return Float64Array.from({ length: bytes.byteLength / 8 }, (_, i) => view.getFloat64(i * 8, true));
+}
 
 /** A client of one kinserve server (`new KinserveClient("http://127.0.0.1:8080")`). */
 export class KinserveClient {
@@ -73,11 +107,18 @@ export class KinserveClient {
     this.retries = Math.max(0, Math.floor(options.retries ?? 3));
   }
 
-  private async request(method: string, path: string, init: { body?: unknown; contentType?: string; headers?: Record<string, string> } = {}): Promise<Response> {
+  private async request(
+    method: string,
+    path: string,
+    init: { body?: unknown; raw?: Uint8Array<ArrayBuffer>; contentType?: string; headers?: Record<string, string> } = {},
+  ): Promise<Response> {
     const headers: Record<string, string> = { ...init.headers };
     if (this.token) headers.authorization = `Bearer ${this.token}`;
-    let body: string | undefined;
-    if (init.body !== undefined) {
+    let body: string | Uint8Array<ArrayBuffer> | undefined;
+    if (init.raw !== undefined) {
+      headers["content-type"] = init.contentType ?? OCTETS;
+      body = init.raw;
+    } else if (init.body !== undefined) {
       headers["content-type"] = init.contentType ?? "application/json";
       body = JSON.stringify(init.body);
     }
@@ -155,6 +196,34 @@ export class KinserveClient {
   /** `POST /v1/robots/{name}/fk/batch`. */
   fkBatch(name: string, body: Body<"fk_batch">): Promise<Answer<"fk_batch">> {
     return this.json("POST", robotPath(name, "/fk/batch"), body);
+  }
+
+  /**
+   * `POST /v1/robots/{name}/fk/batch` packed both ways
+   * (`application/octet-stream`, little-endian float64): `q` holds n × dof
+   * joint values, configuration after configuration (a `Float64Array` is sent
+   * as it is); the options are query parameters. The answer's `values` hold
+   * `stride` numbers per pose: 12 for `matrix` (the top three rows of the 4×4
+   * matrix, row-major; `full` is answered as `matrix`), 3 for `position`.
+   * The same doubles as `fkBatch`'s JSON, without printing or parsing them.
+   */
+  async fkBatchPacked(name: string, q: Float64Array | readonly number[], query: Query<"fk_batch"> = {}): Promise<PackedPoses> {
+    const params = new URLSearchParams();
+    for (const [key, value] of Object.entries(query)) {
+      if (value !== undefined && value !== null) params.set(key, String(value));
+    }
+    const s = params.toString();
+    const r = await this.request("POST", robotPath(name, "/fk/batch") + (s ? `?${s}` : ""), {
+      raw: toLittleEndian(q),
+      headers: { accept: OCTETS },
+    });
+    const poseFormat = r.headers.get("kinserve-pose-format") === "position" ? "position" : "matrix";
+    return {
+      poseFormat,
+      lengthUnit: r.headers.get("kinserve-length-unit") ?? "",
+      stride: poseFormat === "position" ? 3 : 12,
+      values: fromLittleEndian(await r.arrayBuffer()),
+    };
   }
 
   /** `POST /v1/robots/{name}/jacobian`. */

@@ -49,6 +49,22 @@ test("fk equals the kinematics library, batch formats equal the full pose", asyn
   close(deg.pose?.matrix ?? [], fk.pose.matrix, 1e-12, "deg");
 });
 
+test("fk batch packed: the JSON batch's doubles, bit for bit", async () => {
+  const qs = [[0.3, -0.4, 0.6, 0.2, -0.5, 0.7], [0.1, 0.2, 0.3, 0.4, 0.5, 0.6], [0, 0, 0, 0, 0, 0]];
+  const json = await client.fkBatch("puma560", { configurations: qs, pose_format: "matrix" });
+  const matrices = json.matrices ?? [];
+  assert.equal(matrices.length, 3);
+  const packed = await client.fkBatchPacked("puma560", new Float64Array(qs.flat()), { pose_format: "matrix" });
+  assert.deepEqual([packed.poseFormat, packed.stride, packed.lengthUnit], ["matrix", 12, "m"]);
+  assert.deepEqual(Array.from(packed.values), matrices.flat());
+  const degrees = qs.flat().map((x) => (x * 180) / Math.PI);
+  const pos = await client.fkBatchPacked("puma560", degrees, { pose_format: "position", angle_unit: "deg" });
+  assert.equal(pos.stride, 3);
+  close(Array.from(pos.values), matrices.map((m) => [m[3] ?? NaN, m[7] ?? NaN, m[11] ?? NaN]), 1e-12, "positions in degrees");
+  // Not a whole number of 6-joint configurations: a 400 naming `body`.
+  await assert.rejects(client.fkBatchPacked("puma560", [0.1, 0.2]), (e: unknown) => e instanceof KinserveError && e.status === 400 && "body" in e.fields);
+});
+
 test("jacobian, ik, link transforms, closed form", async () => {
   const q = [0.3, -0.4, 0.6, 0.2, -0.5, 0.7];
   const j = await client.jacobian("puma560", { joints: q });
