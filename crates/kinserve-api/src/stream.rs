@@ -1,8 +1,9 @@
 //! A gRPC stream message → the robot it names and the [`StreamOp`] it asks
 //! for (the same operation a WebSocket message converts into): FK of one
 //! configuration (`joints`), of many (`configurations` or
-//! `packed_configurations`, answered as the FK batch), IK or a Cartesian path. Depends on the model, [`crate::fk`],
-//! [`crate::jacobian`], [`crate::operations`] and [`crate::pb`].
+//! `packed_configurations`, answered as the FK batch), IK or a Cartesian
+//! path. Depends on the model, [`crate::fk`], [`crate::jacobian`],
+//! [`crate::operations`] and [`crate::pb`].
 
 use kinserve_model::{FkBatchSpec, FkSpec, IkPathSpec, IkSpec, ModelError, Result, StreamOp};
 
@@ -14,8 +15,8 @@ impl TryFrom<pb::StreamForwardKinematicsRequest> for StreamOp {
     type Error = ModelError;
     /// FK of one configuration (with the Jacobian and the operations on one
     /// configuration when asked for), FK of many, IK or a path: exactly one
-    /// of `joints`, `configurations`, `ik`, `ik_path`; an `ik.robot` other
-    /// than the message's is refused.
+    /// of `joints`, `configurations` (or `packed_configurations`), `ik`,
+    /// `ik_path`; an `ik.robot` other than the message's is refused.
     fn try_from(msg: pb::StreamForwardKinematicsRequest) -> Result<StreamOp> {
         if !msg.configurations.is_empty() || msg.packed_configurations.is_some() {
             return fk_batch(msg);

@@ -162,10 +162,6 @@ fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Vec<Vec<
     }
 }
 
-/// One packed batch (`application/octet-stream` both ways): the joint values
-/// as little-endian float64, the answer's poses cut into matrices (12
-/// numbers, `[0, 0, 0, 1]` added for `full`, which is answered as `matrix`)
-/// or positions.
 /// The gRPC batch request of `q` (`dof` values per configuration): one
 /// `JointConfiguration` per configuration, or all of them in
 /// `packed_configurations` for `grpc-batch-packed`.
@@ -189,6 +185,10 @@ fn grpc_batch(args: &super::LoadArgs, q: &[f64], dof: usize) -> pb::ForwardKinem
     req
 }
 
+/// One packed batch (`application/octet-stream` both ways): the joint values
+/// as little-endian float64, the answer's poses cut into matrices (12
+/// numbers, `[0, 0, 0, 1]` added for `full`, which is answered as `matrix`)
+/// or positions.
 async fn rest_packed(
     http: &reqwest::Client,
     args: &super::LoadArgs,

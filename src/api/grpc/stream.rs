@@ -18,8 +18,7 @@ use crate::error::Error;
 use crate::model::{AngleUnit, StreamOp};
 use crate::service::StreamAnswer;
 use crate::telemetry::Protocol;
-use kinserve_api::ConfigurationBatch;
-use kinserve_api::{packed_to_pb, pose_to_pb};
+use kinserve_api::{ConfigurationBatch, packed_to_pb, pose_to_pb};
 
 impl GrpcService {
     /// The response to one stream message: FK (with the Jacobian and the
