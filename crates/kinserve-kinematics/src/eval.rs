@@ -511,23 +511,9 @@ unsafe fn batch_block<const FMA: bool, V: Lane8>(
             step::apply::<V, 3>(st, &mut m, c, s, dz);
         }
     }
-    // Out of the vectors once (so the loop above keeps them in registers), then
-    // one pose per lane.
-    let mut e = [[[0.0; LANES]; 4]; 3];
-    for r in 0..3 {
-        for col in 0..4 {
-            e[r][col] = m[r][col].store8();
-        }
-    }
-    for (k, o) in out.iter_mut().enumerate().take(LANES) {
-        *o = Transform {
-            rotation: [
-                [e[0][0][k], e[0][1][k], e[0][2][k]],
-                [e[1][0][k], e[1][1][k], e[1][2][k]],
-                [e[2][0][k], e[2][1][k], e[2][2][k]],
-            ],
-            translation: [e[0][3][k], e[1][3][k], e[2][3][k]],
-        };
+    // One pose per lane, after the loop above (which keeps the vectors in registers).
+    if let Some(out) = out.first_chunk_mut::<LANES>() {
+        V::store_poses(&m, out);
     }
     ok
 }

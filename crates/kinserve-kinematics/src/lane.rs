@@ -17,6 +17,7 @@
 )]
 
 use crate::sincos::madd;
+use crate::transform::Transform;
 
 /// A vector of doubles with the operations of a DH step.
 pub(crate) trait Lane: Copy {
@@ -85,6 +86,23 @@ pub(crate) trait Lane8: Lane {
     unsafe fn load8(a: &[f64; 8]) -> Self;
     /// The eight doubles.
     fn store8(self) -> [f64; 8];
+    /// Writes eight poses: lane `k` of `m[r][c]` is row `r`, column `c` of
+    /// pose `k`'s top three rows (column 3 the translation). Out of the
+    /// vectors once, then pose by pose.
+    #[inline(always)]
+    fn store_poses(m: &[[Self; 4]; 3], out: &mut [Transform; 8]) {
+        let e = m.map(|row| row.map(Self::store8));
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = Transform {
+                rotation: [
+                    [e[0][0][k], e[0][1][k], e[0][2][k]],
+                    [e[1][0][k], e[1][1][k], e[1][2][k]],
+                    [e[2][0][k], e[2][1][k], e[2][2][k]],
+                ],
+                translation: [e[0][3][k], e[1][3][k], e[2][3][k]],
+            };
+        }
+    }
 }
 
 impl<const FMA: bool> Lane8 for Arr<FMA, 8> {
@@ -305,9 +323,13 @@ mod ymm {
 #[cfg(target_arch = "x86_64")]
 mod zmm {
     use super::{Lane, Lane8};
+    use crate::transform::Transform;
     use std::arch::x86_64::{
-        __m512d, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd, _mm512_set1_pd,
-        _mm512_storeu_pd, _mm512_xor_pd,
+        __m256d, __m512d, _mm256_setzero_pd, _mm256_storeu_pd, _mm512_castpd512_pd256,
+        _mm512_extractf64x4_pd, _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_loadu_pd, _mm512_mul_pd,
+        _mm512_permutex2var_pd, _mm512_set_epi64, _mm512_set1_pd, _mm512_setzero_pd,
+        _mm512_shuffle_f64x2, _mm512_storeu_pd, _mm512_unpackhi_pd, _mm512_unpacklo_pd,
+        _mm512_xor_pd,
     };
 
     /// Eight doubles in one AVX-512 register, with fused multiply-add.
@@ -358,6 +380,112 @@ mod zmm {
             // SAFETY: `a` is 8 writable doubles; a `Zmm` exists only on a CPU with AVX-512F.
             unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
             a
+        }
+
+        /// The eight poses by an in-register transpose: each pose's first
+        /// eight numbers (rotation rows 0, 1 and two of row 2) as an 8 × 8
+        /// block (three rounds of two-source shuffles), its last four
+        /// (`r22`, the translation) as an 8 × 4 one, then one 8-double and
+        /// one 4-double store per pose: 16 stores instead of 12 vector and
+        /// 96 scalar ones.
+        #[inline(always)]
+        fn store_poses(m: &[[Self; 4]; 3], out: &mut [Transform; 8]) {
+            const { assert!(size_of::<[Transform; 8]>() == 96 * size_of::<f64>()) };
+            let [[r00, r01, r02, x], [r10, r11, r12, y], [r20, r21, r22, z]] = *m;
+            let rows = [r00, r01, r02, r10, r11, r12, r20, r21].map(|v| v.0);
+            let base: *mut f64 = out.as_mut_ptr().cast();
+            // SAFETY: a `Zmm` exists only on a CPU with AVX-512F (and AVX);
+            // `Transform` is `repr(C)`, twelve doubles without padding (size
+            // checked above), so `out` is 96 writable doubles and pose `k`'s
+            // are `base[12k..12k + 12]`: every store below is inside them.
+            unsafe {
+                let t = transpose8(rows);
+                let tail = transpose8x4([r22.0, x.0, y.0, z.0]);
+                for k in 0..8 {
+                    _mm512_storeu_pd(base.add(12 * k), t[k]);
+                    _mm256_storeu_pd(base.add(12 * k + 8), tail[k]);
+                }
+            }
+        }
+    }
+
+    /// `a[j]` lane `k` → `out[k]` lane `j`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F.
+    #[inline(always)]
+    unsafe fn transpose8(a: [__m512d; 8]) -> [__m512d; 8] {
+        // SAFETY: by this function's contract.
+        unsafe {
+            // Pairs: lane pair L of `e[i]` holds (a[2i], a[2i + 1]) of pose 2L,
+            // of `o[i]` the same of pose 2L + 1.
+            let e = [
+                _mm512_unpacklo_pd(a[0], a[1]),
+                _mm512_unpacklo_pd(a[2], a[3]),
+                _mm512_unpacklo_pd(a[4], a[5]),
+                _mm512_unpacklo_pd(a[6], a[7]),
+            ];
+            let o = [
+                _mm512_unpackhi_pd(a[0], a[1]),
+                _mm512_unpackhi_pd(a[2], a[3]),
+                _mm512_unpackhi_pd(a[4], a[5]),
+                _mm512_unpackhi_pd(a[6], a[7]),
+            ];
+            // Quads: lane pairs 0 and 2 (0x88) or 1 and 3 (0xDD) of two
+            // sources, so that a pose's four numbers of elements 0..4 (or
+            // 4..8) sit in one 256-bit half; then the two halves of a pose.
+            let mut out = [_mm512_setzero_pd(); 8];
+            // (pairs, the pose 0x88 then gives, the pose 0xDD gives; each + 4 too)
+            for (x, even, odd) in [(e, 0, 2), (o, 1, 3)] {
+                let q88 = [
+                    _mm512_shuffle_f64x2::<0x88>(x[0], x[1]), // poses even, even + 4: elements 0..4
+                    _mm512_shuffle_f64x2::<0x88>(x[2], x[3]), // the same poses: elements 4..8
+                ];
+                let qdd = [
+                    _mm512_shuffle_f64x2::<0xDD>(x[0], x[1]), // poses odd, odd + 4
+                    _mm512_shuffle_f64x2::<0xDD>(x[2], x[3]),
+                ];
+                out[even] = _mm512_shuffle_f64x2::<0x88>(q88[0], q88[1]);
+                out[even + 4] = _mm512_shuffle_f64x2::<0xDD>(q88[0], q88[1]);
+                out[odd] = _mm512_shuffle_f64x2::<0x88>(qdd[0], qdd[1]);
+                out[odd + 4] = _mm512_shuffle_f64x2::<0xDD>(qdd[0], qdd[1]);
+            }
+            out
+        }
+    }
+
+    /// `a[j]` lane `k` → `out[k]` lane `j`, for four vectors of eight.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F.
+    #[inline(always)]
+    unsafe fn transpose8x4(a: [__m512d; 4]) -> [__m256d; 8] {
+        // SAFETY: by this function's contract.
+        unsafe {
+            let (e0, o0) = (
+                _mm512_unpacklo_pd(a[0], a[1]),
+                _mm512_unpackhi_pd(a[0], a[1]),
+            );
+            let (e1, o1) = (
+                _mm512_unpacklo_pd(a[2], a[3]),
+                _mm512_unpackhi_pd(a[2], a[3]),
+            );
+            // Lane pair L of e0/e1 is pose 2L's (a0, a1)/(a2, a3); of o0/o1 pose 2L + 1's.
+            let low = _mm512_set_epi64(11, 10, 3, 2, 9, 8, 1, 0);
+            let high = _mm512_set_epi64(15, 14, 7, 6, 13, 12, 5, 4);
+            let halves = [
+                _mm512_permutex2var_pd(e0, low, e1),  // poses 0, 2
+                _mm512_permutex2var_pd(o0, low, o1),  // poses 1, 3
+                _mm512_permutex2var_pd(e0, high, e1), // poses 4, 6
+                _mm512_permutex2var_pd(o0, high, o1), // poses 5, 7
+            ];
+            let mut out = [_mm256_setzero_pd(); 8];
+            for (i, h) in halves.iter().enumerate() {
+                let pose = [0, 1, 4, 5][i];
+                out[pose] = _mm512_castpd512_pd256(*h);
+                out[pose + 2] = _mm512_extractf64x4_pd::<1>(*h);
+            }
+            out
         }
     }
 }
