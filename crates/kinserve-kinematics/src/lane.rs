@@ -10,7 +10,8 @@
 //!   and a scalar: twice the instructions on the hot path.
 //!
 //! `FMA` selects fused multiply-adds ([`crate::sincos::madd`]). Depends only on
-//! [`crate::sincos`].
+//! [`crate::sincos`] and [`crate::transform`] (the poses the vectors are
+//! written out as).
 #![allow(
     clippy::needless_range_loop,
     reason = "lane loops index several arrays in step; they vectorise as written"
