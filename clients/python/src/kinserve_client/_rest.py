@@ -57,6 +57,7 @@ from .types import (
 )
 
 URDF_IMPORT = "application/vnd.kinserve.urdf-import+json"
+OCTETS = "application/octet-stream"
 
 _IK_FIELDS = {
     "joints", "converged", "position_error", "orientation_error", "iterations", "pose",
@@ -347,21 +348,27 @@ class RestOps:
     ) -> RestCall[Array]:
         q = configurations(configurations_)
         wire = "position" if pose_format == "position" else "matrix"
-        body = {
-            "configurations": q.tolist(),
+        # Packed both ways (application/octet-stream, little-endian float64):
+        # the array's bytes in, the poses' doubles out, nothing printed or
+        # parsed; the options are query parameters.
+        params = {
             "angle_unit": angle_unit,
-            "check_limits": check_limits,
+            "check_limits": "true" if check_limits else "false",
             "pose_format": wire,
         }
+        packed = np.ascontiguousarray(q, dtype="<f8").tobytes()
 
         def parse(r: httpx.Response) -> Array:
-            b = r.json()
+            values = np.frombuffer(r.content, dtype="<f8").astype(np.float64)
             if wire == "position":
-                return _f(b["positions"]).reshape(-1, 3)
-            top = _f(b["matrices"]).reshape(-1, 3, 4)
+                return values.reshape(-1, 3)
+            top = values.reshape(-1, 3, 4)
             return top if pose_format == "matrix" else pad_rows(top)
 
-        return RestCall("POST", _robot_path(robot, "/fk/batch"), parse, json=body)
+        headers = {"content-type": OCTETS, "accept": OCTETS}
+        return RestCall(
+            "POST", _robot_path(robot, "/fk/batch"), parse, content=packed, params=params, headers=headers
+        )
 
     def jacobian(
         self,
