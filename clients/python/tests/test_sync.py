@@ -71,8 +71,21 @@ def test_jacobian_and_batch(client: kc.Client, server: Server) -> None:
     b = client.jacobian_batch("puma560", q, frame="tool")
     assert b.jacobians.shape == (3, 6, 6) and b.poses.shape == (3, 4, 4)
     raw_b = server.raw("POST", "/v1/robots/puma560/jacobian/batch", {"configurations": q.tolist(), "frame": "tool"})
-    assert np.allclose(b.jacobians, [r["jacobian"] for r in raw_b["results"]], atol=EXACT)
-    assert b.singular.tolist() == [r["singular"] for r in raw_b["results"]]
+    res = raw_b["results"]
+    assert np.allclose(b.jacobians, [r["jacobian"] for r in res], atol=EXACT)
+    assert b.singular.tolist() == [r["singular"] for r in res]
+    assert np.allclose(b.manipulability, [r["manipulability"] for r in res], atol=EXACT)
+    assert np.allclose(b.condition_number, [r["condition_number"] for r in res], atol=EXACT)
+    assert np.allclose(b.poses, [r["pose"]["matrix"] for r in res], atol=EXACT)
+    assert (b.robot, b.length_unit, b.frame) == (raw_b["robot"], raw_b["length_unit"], "tool")
+    # The stretched planar arm: a smallest singular value of exactly 0, JSON's
+    # null condition number, NaN in the arrays on both transports.
+    qp = [[0.0, 0.0], [0.5, 0.1]]
+    p = client.jacobian_batch("planar_2dof", qp)
+    raw_p = server.raw("POST", "/v1/robots/planar_2dof/jacobian/batch", {"configurations": qp})["results"]
+    assert raw_p[0]["condition_number"] is None and np.isnan(p.condition_number[0])
+    assert math.isclose(p.condition_number[1], raw_p[1]["condition_number"], rel_tol=0, abs_tol=EXACT)
+    assert p.singular.tolist() == [True, False]
 
 
 def test_ik_reaches_targets_given_as_matrices(client: kc.Client) -> None:

@@ -399,29 +399,38 @@ class RestOps:
         frame: Frame = "base",
     ) -> RestCall[JacobianBatch]:
         q = configurations(configurations_)
-        body = {
-            "configurations": q.tolist(),
+        dof = q.shape[1]
+        # Packed both ways, as fk_batch: per result the 6 × dof rows,
+        # manipulability, condition number (+inf where JSON has null),
+        # singular (1 or 0) and the pose's 12 `matrix` numbers.
+        params = {
             "angle_unit": angle_unit,
-            "check_limits": check_limits,
+            "check_limits": "true" if check_limits else "false",
             "frame": frame,
         }
+        packed = np.ascontiguousarray(q, dtype="<f8").tobytes()
 
         def parse(r: httpx.Response) -> JacobianBatch:
-            b = r.json()
-            res = b["results"]
-            cond = [np.nan if x.get("condition_number") is None else x["condition_number"] for x in res]
+            j = 6 * dof
+            v = np.frombuffer(r.content, dtype="<f8").astype(np.float64).reshape(-1, j + 15)
+            n = len(v)
+            cond = v[:, j + 1].copy()
+            cond[np.isinf(cond)] = np.nan  # JSON's null: no finite condition number
             return JacobianBatch(
-                robot=b["robot"],
-                length_unit=b["length_unit"],
+                robot=robot,
+                length_unit=r.headers.get("kinserve-length-unit", ""),
                 frame=frame,
-                jacobians=_f([x["jacobian"] for x in res]).reshape(len(res), 6, q.shape[1]),
-                manipulability=_f([x["manipulability"] for x in res]),
-                condition_number=_f(cond),
-                singular=np.asarray([x["singular"] for x in res], dtype=np.bool_),
-                poses=_f([x["pose"]["matrix"] for x in res]).reshape(len(res), 4, 4),
+                jacobians=v[:, :j].reshape(n, 6, dof),
+                manipulability=v[:, j].copy(),
+                condition_number=cond,
+                singular=v[:, j + 2] != 0.0,
+                poses=pad_rows(v[:, j + 3 :].reshape(n, 3, 4)),
             )
 
-        return RestCall("POST", _robot_path(robot, "/jacobian/batch"), parse, json=body)
+        headers = {"content-type": OCTETS, "accept": OCTETS}
+        return RestCall(
+            "POST", _robot_path(robot, "/jacobian/batch"), parse, content=packed, params=params, headers=headers
+        )
 
     def ik(
         self,
