@@ -18,7 +18,7 @@ import kinserve_client as kc
 from conftest import Server
 
 HOLDS = 8  # batches at once: the whole share of a server of up to 17 CPUs
-HOLD_SECONDS = 2.5  # how long each hold's caller waits before it gives up
+HOLD_SECONDS = 5.0  # how long each hold's caller waits before it gives up (the window the tests use)
 FAR = {"position": [3.0, 0.0, 0.2]}
 REACHABLE = [0.4, 0.1, 0.4]
 
@@ -61,7 +61,7 @@ def test_a_refused_request_is_sent_again_after_retry_after(
     server: Server, transport: str, share_held: None
 ) -> None:
     start = time.monotonic()
-    with kc.Client(server.address(transport), transport=transport, retries=6) as c:  # type: ignore[arg-type]
+    with kc.Client(server.address(transport), transport=transport, retries=10) as c:  # type: ignore[arg-type]
         answer = c.ik("ur5e", REACHABLE, position_only=True)
     assert answer.converged
     assert time.monotonic() - start >= 0.9, "answered only after waiting at least once"
