@@ -247,3 +247,14 @@ def test_grpc_batches_send_packed_configurations() -> None:
     with pytest.raises(kc.KinserveError, match="packed_configurations") as e:
         _grpc.answered(np.zeros((0, 3)), 5, "poses")
     assert e.value.code == "UNIMPLEMENTED"
+
+
+def test_a_batch_of_the_wrong_width_is_refused(client: kc.Client) -> None:
+    """Six configurations of 7 values for the 6-joint PUMA: 42 values, a whole
+    number of 6-joint configurations too, refused on both transports (the
+    packed batch says its width) instead of read as seven others."""
+    q = np.zeros((6, 7))
+    for call in (client.fk_batch, client.jacobian_batch):
+        with pytest.raises(kc.errors.InvalidArgument) as e:
+            call("puma560", q)
+        assert [f.rsplit(".", 1)[-1] for f in e.value.fields] == ["joint_count"], e.value

@@ -202,7 +202,8 @@ export class KinserveClient {
    * `POST /v1/robots/{name}/fk/batch` packed both ways
    * (`application/octet-stream`, little-endian float64): `q` holds n × dof
    * joint values, configuration after configuration (a `Float64Array` is sent
-   * as it is); the options are query parameters. The answer's `values` hold
+   * as it is); the options are query parameters (give `joint_count`, the
+   * values per configuration: an array of the wrong width is then refused). The answer's `values` hold
    * `stride` numbers per pose: 12 for `matrix` (the top three rows of the 4×4
    * matrix, row-major; `full` is answered as `matrix`), 3 for `position`.
    * The same doubles as `fkBatch`'s JSON, without printing or parsing them.

@@ -61,6 +61,8 @@ test("fk batch packed: the JSON batch's doubles, bit for bit", async () => {
   const pos = await client.fkBatchPacked("puma560", degrees, { pose_format: "position", angle_unit: "deg" });
   assert.equal(pos.stride, 3);
   close(Array.from(pos.values), matrices.map((m) => [m[3] ?? NaN, m[7] ?? NaN, m[11] ?? NaN]), 1e-12, "positions in degrees");
+  // 42 values declared as 7 per configuration for the 6-joint PUMA: a 422 naming `joint_count`.
+  await assert.rejects(client.fkBatchPacked("puma560", new Float64Array(42), { joint_count: 7 }), (e: unknown) => e instanceof KinserveError && e.status === 422 && "joint_count" in e.fields);
   // Not a whole number of 6-joint configurations: a 400 naming `body`.
   await assert.rejects(client.fkBatchPacked("puma560", [0.1, 0.2]), (e: unknown) => e instanceof KinserveError && e.status === 400 && "body" in e.fields);
 });

@@ -191,7 +191,7 @@ pub trait BatchKind: Send {
     /// The protobuf request message.
     type Proto: Message + Default;
     /// The query parameters of a packed body (the JSON body's options).
-    type Query: DeserializeOwned + Send;
+    type Query: DeserializeOwned + Send + PackedQuery;
     /// The protocol-neutral request.
     type Spec;
     /// Whether packed bodies and answers are supported.
@@ -305,11 +305,48 @@ impl<K: BatchKind> BatchBody<K> {
                 K::from_proto(msg)
             }
             BatchRequest::Packed(bytes, query) => {
+                check_joint_count(query.joint_count(), robot.dof())?;
                 service.check_batch_size(kinserve_api::packed_count(bytes.len(), robot.dof()))?;
                 let configurations = kinserve_api::configurations_from_le(&bytes, robot.dof())?;
                 K::from_packed(configurations, query)
             }
         }
+    }
+}
+
+/// What every packed batch's query may say besides its options.
+pub trait PackedQuery {
+    /// The `joint_count` parameter: values per configuration, as the client
+    /// packed them.
+    fn joint_count(&self) -> Option<u32>;
+}
+
+impl PackedQuery for PackedFkQuery {
+    fn joint_count(&self) -> Option<u32> {
+        self.joint_count
+    }
+}
+
+impl PackedQuery for PackedJacobianQuery {
+    fn joint_count(&self) -> Option<u32> {
+        self.joint_count
+    }
+}
+
+/// A packed body's declared `joint_count` against the robot's: a body of the
+/// wrong width whose length happens to be a multiple of the robot's joint
+/// count (42 values: 6 of 7 joints, or 7 of 6) is refused instead of read as
+/// other configurations. Invalid, naming `joint_count`.
+fn check_joint_count(declared: Option<u32>, dof: usize) -> Result<(), Error> {
+    match declared {
+        Some(n) if n as usize != dof => Err(Error::invalid_field(
+            "joint_count",
+            format!(
+                "{n} values per configuration, but the robot has {dof} joints: pack {dof} values \
+                 per configuration"
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -326,6 +363,10 @@ pub struct PackedFkQuery {
     /// `application/octet-stream` bodies only: how each pose is written
     /// (default `full`; a packed answer writes `full` as `matrix`).
     pub pose_format: Option<PoseFormat>,
+    /// `application/octet-stream` bodies only: values per configuration as
+    /// packed; when given it must be the robot's number of joints (422 naming
+    /// `joint_count`), so that an array of the wrong width is refused.
+    pub joint_count: Option<u32>,
 }
 
 /// The options of a packed Jacobian batch, as query parameters.
@@ -339,6 +380,10 @@ pub struct PackedJacobianQuery {
     pub check_limits: Option<bool>,
     /// `application/octet-stream` bodies only: frame of the rows (default `base`).
     pub frame: Option<ReferenceFrame>,
+    /// `application/octet-stream` bodies only: values per configuration as
+    /// packed; when given it must be the robot's number of joints (422 naming
+    /// `joint_count`).
+    pub joint_count: Option<u32>,
 }
 
 /// FK batches.

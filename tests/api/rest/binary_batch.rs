@@ -272,11 +272,29 @@ async fn packed_fk_options_come_as_query_parameters() {
         &as_json["poses"][1]["position"],
         &json["positions"][1]
     ));
+    // joint_count: the robot's passes; another is refused even when the
+    // length is a whole number of the robot's configurations (8 values: two
+    // of 4 joints, or four of 2), on both batch routes.
+    let query =
+        format!("{path}?angle_unit=deg&check_limits=false&pose_format=position&joint_count=4");
+    let got = ok_bytes(
+        send(&app, &query, PACKED, PACKED, packed(&qs)).await,
+        PACKED,
+    )
+    .await;
+    assert_bits_eq(&unpack(&got), &want, "with joint_count");
+    for route in [path, "/v1/robots/scara_4dof/jacobian/batch"] {
+        let query = format!("{route}?angle_unit=deg&check_limits=false&joint_count=2");
+        let p = problem(send(&app, &query, PACKED, PACKED, packed(&qs)).await, 422).await;
+        assert_eq!(fields(&p), ["joint_count"], "{route}");
+        assert!(p["detail"].as_str().unwrap().contains("4 joints"), "{p}");
+    }
     // Unknown or ill-typed parameters: 400 naming the query.
     for bad in [
         "pose_fromat=matrix",
         "angle_unit=grad",
         "check_limits=maybe",
+        "joint_count=-1",
     ] {
         let r = send(&app, &format!("{path}?{bad}"), PACKED, PACKED, packed(&qs)).await;
         let p = problem(r, 400).await;

@@ -350,11 +350,14 @@ class RestOps:
         wire = "position" if pose_format == "position" else "matrix"
         # Packed both ways (application/octet-stream, little-endian float64):
         # the array's bytes in, the poses' doubles out, nothing printed or
-        # parsed; the options are query parameters.
+        # parsed; the options are query parameters, with the array's width
+        # (joint_count) so that one of the wrong width is refused, not read
+        # as other configurations.
         params = {
             "angle_unit": angle_unit,
             "check_limits": "true" if check_limits else "false",
             "pose_format": wire,
+            "joint_count": str(q.shape[1]),
         }
         packed = np.ascontiguousarray(q, dtype="<f8").tobytes()
 
@@ -407,6 +410,7 @@ class RestOps:
             "angle_unit": angle_unit,
             "check_limits": "true" if check_limits else "false",
             "frame": frame,
+            "joint_count": str(dof),
         }
         packed = np.ascontiguousarray(q, dtype="<f8").tobytes()
 
