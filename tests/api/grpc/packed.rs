@@ -81,15 +81,11 @@ async fn packed_configurations_answer_as_repeated_ones_byte_for_byte() {
 
             // REST's protobuf body takes the same message (robot in the path).
             other.robot.clear();
+            let path = format!("/v1/robots/{robot}/fk/batch");
+            let protobuf = "application/x-protobuf";
             let r = app
-                .client
-                .post(format!("{}/v1/robots/{robot}/fk/batch", app.http))
-                .header("content-type", "application/x-protobuf")
-                .header("accept", "application/x-protobuf")
-                .body(other.encode_to_vec())
-                .send()
-                .await
-                .unwrap();
+                .post_bytes(&path, protobuf, protobuf, other.encode_to_vec())
+                .await;
             assert_eq!(r.status(), 200, "{robot} {format:?}");
             assert_eq!(r.bytes().await.unwrap(), a.encode_to_vec(), "REST {robot}");
         }
@@ -203,14 +199,10 @@ async fn packed_configurations_are_checked_and_errors_name_the_field() {
     // REST's protobuf body: the same check, as a 422 naming the field.
     let mut msg = send(vec![], packed(&seven, 7));
     msg.robot.clear();
+    let path = "/v1/robots/puma560/fk/batch";
     let r = app
-        .client
-        .post(format!("{}/v1/robots/puma560/fk/batch", app.http))
-        .header("content-type", "application/x-protobuf")
-        .body(msg.encode_to_vec())
-        .send()
-        .await
-        .unwrap();
+        .post_bytes(path, "application/x-protobuf", "", msg.encode_to_vec())
+        .await;
     let p = problem(r, 422).await;
     assert_eq!(fields(&p), ["packed_configurations.joint_count"]);
 }

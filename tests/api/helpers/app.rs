@@ -122,6 +122,26 @@ impl TestApp {
             .expect("request sent")
     }
 
+    /// `POST {path}` with `body` of `content_type`, asking for `accept`
+    /// (no `Accept` header when empty): the binary batch bodies.
+    pub async fn post_bytes(
+        &self,
+        path: &str,
+        content_type: &str,
+        accept: &str,
+        body: Vec<u8>,
+    ) -> reqwest::Response {
+        let mut req = self
+            .client
+            .post(format!("{}{path}", self.http))
+            .header("content-type", content_type)
+            .body(body);
+        if !accept.is_empty() {
+            req = req.header("accept", accept);
+        }
+        req.send().await.expect("request sent")
+    }
+
     /// `GET {path}`.
     pub async fn get(&self, path: &str) -> reqwest::Response {
         self.client

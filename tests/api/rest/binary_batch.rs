@@ -17,25 +17,6 @@ use crate::helpers::*;
 const PROTOBUF: &str = "application/x-protobuf";
 const PACKED: &str = "application/octet-stream";
 
-/// `POST {path}` with `body` of `content_type`, asking for `accept` (none when empty).
-async fn send(
-    app: &TestApp,
-    path: &str,
-    content_type: &str,
-    accept: &str,
-    body: Vec<u8>,
-) -> reqwest::Response {
-    let mut req = app
-        .client
-        .post(format!("{}{path}", app.http))
-        .header("content-type", content_type)
-        .body(body);
-    if !accept.is_empty() {
-        req = req.header("accept", accept);
-    }
-    req.send().await.expect("request sent")
-}
-
 /// The body of a 200 answer of `content_type`.
 async fn ok_bytes(r: reqwest::Response, content_type: &str) -> Vec<u8> {
     let status = r.status();
@@ -164,7 +145,7 @@ async fn fk_batch_answers_in_every_format_are_the_json_answer_bit_for_bit() {
 
             // Packed in, packed out.
             let query = format!("{path}?pose_format={format}");
-            let r = send(&app, &query, PACKED, PACKED, packed(&qs)).await;
+            let r = app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await;
             let want_format = if format == "position" {
                 "position"
             } else {
@@ -188,14 +169,20 @@ async fn fk_batch_answers_in_every_format_are_the_json_answer_bit_for_bit() {
 
             // Protobuf in; JSON, protobuf and packed out.
             let msg = fk_message("", &qs, format).encode_to_vec();
-            let r = send(&app, path, PROTOBUF, "application/json", msg.clone()).await;
+            let r = app
+                .post_bytes(path, PROTOBUF, "application/json", msg.clone())
+                .await;
             assert!(
                 ok_bytes(r, "application/json").await == json_text,
                 "{what}: the JSON answer to the protobuf request differs"
             );
-            let r = send(&app, path, PROTOBUF, PACKED, msg.clone()).await;
+            let r = app.post_bytes(path, PROTOBUF, PACKED, msg.clone()).await;
             assert!(ok_bytes(r, PACKED).await == packed_answer, "{what}");
-            let rest_pb = ok_bytes(send(&app, path, PROTOBUF, PROTOBUF, msg).await, PROTOBUF).await;
+            let rest_pb = ok_bytes(
+                app.post_bytes(path, PROTOBUF, PROTOBUF, msg).await,
+                PROTOBUF,
+            )
+            .await;
 
             // The protobuf answer is gRPC's answer, byte for byte.
             let grpc_answer = grpc
@@ -246,7 +233,7 @@ async fn packed_fk_options_come_as_query_parameters() {
     let json: Value = app.post(path, &body).await.json().await.unwrap();
     let query = format!("{path}?angle_unit=deg&check_limits=false&pose_format=position");
     let got = ok_bytes(
-        send(&app, &query, PACKED, PACKED, packed(&qs)).await,
+        app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await,
         PACKED,
     )
     .await;
@@ -255,17 +242,21 @@ async fn packed_fk_options_come_as_query_parameters() {
     assert_bits_eq(&unpack(&got), &want, "deg, no limit check");
     // Without check_limits=false the same body is refused, naming the value.
     let query = format!("{path}?angle_unit=deg");
-    let p = problem(send(&app, &query, PACKED, PACKED, packed(&qs)).await, 422).await;
-    assert_eq!(fields(&p), ["configurations[1][2]"]);
-    // A packed body answered as JSON, and with a JSON answer the default is `full`.
-    let r = send(
-        &app,
-        &format!("{path}?angle_unit=deg&check_limits=false"),
-        PACKED,
-        "",
-        packed(&qs),
+    let p = problem(
+        app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await,
+        422,
     )
     .await;
+    assert_eq!(fields(&p), ["configurations[1][2]"]);
+    // A packed body answered as JSON, and with a JSON answer the default is `full`.
+    let r = app
+        .post_bytes(
+            &format!("{path}?angle_unit=deg&check_limits=false"),
+            PACKED,
+            "",
+            packed(&qs),
+        )
+        .await;
     let as_json: Value = serde_json::from_slice(&ok_bytes(r, "application/json").await).unwrap();
     assert_eq!(as_json["poses"].as_array().unwrap().len(), 2);
     assert!(json_eq(
@@ -278,14 +269,18 @@ async fn packed_fk_options_come_as_query_parameters() {
     let query =
         format!("{path}?angle_unit=deg&check_limits=false&pose_format=position&joint_count=4");
     let got = ok_bytes(
-        send(&app, &query, PACKED, PACKED, packed(&qs)).await,
+        app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await,
         PACKED,
     )
     .await;
     assert_bits_eq(&unpack(&got), &want, "with joint_count");
     for route in [path, "/v1/robots/scara_4dof/jacobian/batch"] {
         let query = format!("{route}?angle_unit=deg&check_limits=false&joint_count=2");
-        let p = problem(send(&app, &query, PACKED, PACKED, packed(&qs)).await, 422).await;
+        let p = problem(
+            app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await,
+            422,
+        )
+        .await;
         assert_eq!(fields(&p), ["joint_count"], "{route}");
         assert!(p["detail"].as_str().unwrap().contains("4 joints"), "{p}");
     }
@@ -296,7 +291,9 @@ async fn packed_fk_options_come_as_query_parameters() {
         "check_limits=maybe",
         "joint_count=-1",
     ] {
-        let r = send(&app, &format!("{path}?{bad}"), PACKED, PACKED, packed(&qs)).await;
+        let r = app
+            .post_bytes(&format!("{path}?{bad}"), PACKED, PACKED, packed(&qs))
+            .await;
         let p = problem(r, 400).await;
         assert_eq!(fields(&p), ["query"], "{bad}");
     }
@@ -335,7 +332,7 @@ async fn accept_chooses_the_answer_whatever_the_request() {
             ),
             (PACKED, packed(&qs)),
         ] {
-            let r = send(&app, path, ct, accept, body).await;
+            let r = app.post_bytes(path, ct, accept, body).await;
             assert_eq!(r.status(), 200, "Accept {accept:?}, {ct}");
             assert_eq!(r.headers()["content-type"], want, "Accept {accept:?}, {ct}");
         }
@@ -345,7 +342,7 @@ async fn accept_chooses_the_answer_whatever_the_request() {
         "application/json;q=0, application/x-protobuf;q=0",
         "image/*",
     ] {
-        let r = send(&app, path, PACKED, accept, packed(&qs)).await;
+        let r = app.post_bytes(path, PACKED, accept, packed(&qs)).await;
         let p = problem(r, 406).await;
         assert_eq!(p["type"], "urn:kinserve:problem:not-acceptable");
         assert!(p["detail"].as_str().unwrap().contains(PACKED), "{p}");
@@ -356,8 +353,12 @@ async fn accept_chooses_the_answer_whatever_the_request() {
         &json!({"targets": [{"position": [0.5, 0.3, 0.0]}], "position_only": true}),
     )
     .unwrap();
-    problem(send(&app, ik, "application/json", PACKED, body).await, 406).await;
-    let p = problem(send(&app, ik, PACKED, "", packed(&qs)).await, 415).await;
+    problem(
+        app.post_bytes(ik, "application/json", PACKED, body).await,
+        406,
+    )
+    .await;
+    let p = problem(app.post_bytes(ik, PACKED, "", packed(&qs)).await, 415).await;
     let detail = p["detail"].as_str().unwrap();
     assert!(detail.contains("application/x-protobuf, got"), "{p}");
 }
@@ -376,7 +377,7 @@ async fn binary_refusals_are_problems_naming_what_is_wrong() {
             "planar configurations",
         ),
     ] {
-        let p = problem(send(&app, path, PACKED, PACKED, body).await, 400).await;
+        let p = problem(app.post_bytes(path, PACKED, PACKED, body).await, 400).await;
         assert_eq!(fields(&p), ["body"], "{what}");
         assert!(
             p["detail"].as_str().unwrap().contains("48 bytes"),
@@ -385,34 +386,40 @@ async fn binary_refusals_are_problems_naming_what_is_wrong() {
     }
     // An empty packed body is an empty batch.
     assert!(
-        ok_bytes(send(&app, path, PACKED, PACKED, Vec::new()).await, PACKED)
-            .await
-            .is_empty()
+        ok_bytes(
+            app.post_bytes(path, PACKED, PACKED, Vec::new()).await,
+            PACKED
+        )
+        .await
+        .is_empty()
     );
     // A value JSON cannot carry: refused like an out-of-range one, naming it.
     let mut qs = configs(3, 6);
     qs[2][4] = f64::NAN;
-    let p = problem(send(&app, path, PACKED, PACKED, packed(&qs)).await, 422).await;
+    let p = problem(app.post_bytes(path, PACKED, PACKED, packed(&qs)).await, 422).await;
     assert_eq!(fields(&p), ["configurations[2][4]"]);
     // Protobuf: a configuration of the wrong length, another robot's
     // message, bytes that are no message, frames asked of a batch.
     let mut msg = fk_message("puma560", &configs(3, 6), "matrix");
     msg.configurations[1].joints.pop();
     let p = problem(
-        send(&app, path, PROTOBUF, PROTOBUF, msg.encode_to_vec()).await,
+        app.post_bytes(path, PROTOBUF, PROTOBUF, msg.encode_to_vec())
+            .await,
         422,
     )
     .await;
     assert_eq!(fields(&p), ["configurations[1]"]);
     let msg = fk_message("ur5e", &configs(3, 6), "matrix");
     let p = problem(
-        send(&app, path, PROTOBUF, PROTOBUF, msg.encode_to_vec()).await,
+        app.post_bytes(path, PROTOBUF, PROTOBUF, msg.encode_to_vec())
+            .await,
         422,
     )
     .await;
     assert_eq!(fields(&p), ["robot"]);
     let p = problem(
-        send(&app, path, PROTOBUF, PROTOBUF, vec![0xff; 9]).await,
+        app.post_bytes(path, PROTOBUF, PROTOBUF, vec![0xff; 9])
+            .await,
         400,
     )
     .await;
@@ -423,28 +430,24 @@ async fn binary_refusals_are_problems_naming_what_is_wrong() {
         ..Default::default()
     });
     let p = problem(
-        send(&app, path, PROTOBUF, PROTOBUF, msg.encode_to_vec()).await,
+        app.post_bytes(path, PROTOBUF, PROTOBUF, msg.encode_to_vec())
+            .await,
         400,
     )
     .await;
     assert_eq!(fields(&p), ["options.frames"]);
     // Another media type: the usual 415, listing the three.
     let p = problem(
-        send(&app, path, "text/plain", PACKED, b"1 2 3".to_vec()).await,
+        app.post_bytes(path, "text/plain", PACKED, b"1 2 3".to_vec())
+            .await,
         415,
     )
     .await;
     assert!(p["detail"].as_str().unwrap().contains(PROTOBUF), "{p}");
     // An unknown robot is 404 whatever the body.
     problem(
-        send(
-            &app,
-            "/v1/robots/nope/fk/batch",
-            PACKED,
-            PACKED,
-            vec![0; 48],
-        )
-        .await,
+        app.post_bytes("/v1/robots/nope/fk/batch", PACKED, PACKED, vec![0; 48])
+            .await,
         404,
     )
     .await;
@@ -459,29 +462,33 @@ async fn binary_batches_have_the_json_limits() {
     .await;
     let path = "/v1/robots/planar_2dof/fk/batch";
     let ok = ok_bytes(
-        send(&app, path, PACKED, PACKED, packed(&configs(3, 2))).await,
+        app.post_bytes(path, PACKED, PACKED, packed(&configs(3, 2)))
+            .await,
         PACKED,
     )
     .await;
     assert_eq!(ok.len(), 3 * 12 * 8);
     let p = problem(
-        send(&app, path, PACKED, PACKED, packed(&configs(4, 2))).await,
+        app.post_bytes(path, PACKED, PACKED, packed(&configs(4, 2)))
+            .await,
         413,
     )
     .await;
     assert_eq!(fields(&p), ["configurations"]);
     let msg = fk_message("", &configs(4, 2), "matrix").encode_to_vec();
-    let p = problem(send(&app, path, PROTOBUF, PROTOBUF, msg).await, 413).await;
+    let p = problem(app.post_bytes(path, PROTOBUF, PROTOBUF, msg).await, 413).await;
     assert_eq!(fields(&p), ["configurations"]);
     let jac = "/v1/robots/planar_2dof/jacobian/batch";
     problem(
-        send(&app, jac, PACKED, PACKED, packed(&configs(4, 2))).await,
+        app.post_bytes(jac, PACKED, PACKED, packed(&configs(4, 2)))
+            .await,
         413,
     )
     .await;
     // Over the batch body limit.
     let p = problem(
-        send(&app, path, PACKED, PACKED, vec![0; 4096 + 16]).await,
+        app.post_bytes(path, PACKED, PACKED, vec![0; 4096 + 16])
+            .await,
         413,
     )
     .await;
@@ -513,7 +520,7 @@ async fn jacobian_batch_answers_in_every_format_are_the_json_answer_bit_for_bit(
                 );
             }
             let query = format!("{path}?frame={frame}");
-            let r = send(&app, &query, PACKED, PACKED, packed(&qs)).await;
+            let r = app.post_bytes(&query, PACKED, PACKED, packed(&qs)).await;
             let got = unpack(&ok_bytes(r, PACKED).await);
             assert_eq!(got.len(), qs.len() * (6 * dof + 15), "{what}");
             assert_bits_eq(&got, &want, &what);
@@ -538,7 +545,8 @@ async fn jacobian_batch_answers_in_every_format_are_the_json_answer_bit_for_bit(
                 ..Default::default()
             };
             let rest_pb = ok_bytes(
-                send(&app, &path, PROTOBUF, PROTOBUF, msg.encode_to_vec()).await,
+                app.post_bytes(&path, PROTOBUF, PROTOBUF, msg.encode_to_vec())
+                    .await,
                 PROTOBUF,
             )
             .await;
@@ -547,14 +555,9 @@ async fn jacobian_batch_answers_in_every_format_are_the_json_answer_bit_for_bit(
                 rest_pb == grpc_answer.encode_to_vec(),
                 "{what}: REST protobuf ≠ gRPC"
             );
-            let r = send(
-                &app,
-                &path,
-                PROTOBUF,
-                "application/json",
-                msg.encode_to_vec(),
-            )
-            .await;
+            let r = app
+                .post_bytes(&path, PROTOBUF, "application/json", msg.encode_to_vec())
+                .await;
             assert!(ok_bytes(r, "application/json").await == json_text, "{what}");
         }
     }
@@ -587,20 +590,16 @@ async fn ik_batch_takes_and_gives_the_grpc_messages() {
         angle_unit: pb::AngleUnit::Deg as i32,
         ..Default::default()
     };
-    let r = send(
-        &app,
-        path,
-        PROTOBUF,
-        "application/json",
-        msg.encode_to_vec(),
-    )
-    .await;
+    let r = app
+        .post_bytes(path, PROTOBUF, "application/json", msg.encode_to_vec())
+        .await;
     assert!(
         ok_bytes(r, "application/json").await == json_text,
         "JSON answer to the message"
     );
     let rest_pb = ok_bytes(
-        send(&app, path, PROTOBUF, PROTOBUF, msg.encode_to_vec()).await,
+        app.post_bytes(path, PROTOBUF, PROTOBUF, msg.encode_to_vec())
+            .await,
         PROTOBUF,
     )
     .await;
