@@ -1,0 +1,405 @@
+//! What the load generator sends and reads: the REST and WebSocket request
+//! bodies, the gRPC batch requests (repeated or packed), the packed REST
+//! batch, and the decoding of every answer into poses ([`Poses`]) or stream
+//! replies ([`Reply`]). The workers in the parent module own the timing and
+//! the connections; this module owns no I/O but the packed REST call, and
+//! does not depend on the parent.
+
+use crate::{PoseFormat, Target};
+use kinserve_api::pb;
+
+#[derive(serde::Serialize)]
+pub(super) struct SingleBody<'a> {
+    pub(super) joints: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) pose_format: Option<&'static str>,
+}
+
+#[derive(serde::Serialize)]
+pub(super) struct BatchBody<'a> {
+    pub(super) configurations: Vec<&'a [f64]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) pose_format: Option<&'static str>,
+}
+
+/// A compact single reply: the pose in the field of its format (`matrix`:
+/// 12 numbers, `position`: 3).
+#[derive(serde::Deserialize)]
+pub(super) struct CompactSingleReply {
+    matrix: Option<Vec<f64>>,
+    position: Option<Vec<f64>>,
+}
+
+/// A compact batch reply: the poses in the field of their format
+/// (`matrices` or `positions`), each an array of numbers.
+#[derive(serde::Deserialize)]
+pub(super) struct CompactBatchReply {
+    matrices: Option<Vec<Vec<f64>>>,
+    positions: Option<Vec<Vec<f64>>>,
+}
+
+/// Of the fields a compact reply may carry (`matrix`-format one first), the
+/// one of `format`.
+pub(super) fn field_of<T>(format: PoseFormat, matrix: Option<T>, position: Option<T>) -> Option<T> {
+    match format {
+        PoseFormat::Full => None,
+        PoseFormat::Matrix => matrix,
+        PoseFormat::Position => position,
+    }
+}
+
+/// The arrays of numbers under the top-level `field` of a JSON body, read
+/// by the scanner the server reads batch bodies with
+/// ([`kinserve_model::split_rows`]), if it takes them and the rest of the
+/// body is valid JSON; `None` sends the caller to serde.
+pub(super) fn fast_rows(bytes: &[u8], field: &str) -> Option<Vec<Vec<f64>>> {
+    let (rest, rows) = kinserve_model::split_rows(bytes, field)?;
+    serde_json::from_slice::<serde::de::IgnoredAny>(&rest).ok()?;
+    let mut values = rows.values.as_slice();
+    rows.lens
+        .iter()
+        .map(|&n| {
+            let (row, tail) = values.split_at_checked(n as usize)?;
+            values = tail;
+            Some(row.to_vec())
+        })
+        .collect()
+}
+
+/// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
+pub(super) fn decode_rest(
+    bytes: &[u8],
+    batch: bool,
+    format: PoseFormat,
+) -> Result<Vec<Vec<f64>>, String> {
+    let decoded = match (format, batch) {
+        (PoseFormat::Full, false) => {
+            serde_json::from_slice::<SingleReply>(bytes).map(|v| Some(vec![flat(&v.pose.matrix)]))
+        }
+        (PoseFormat::Full, true) => serde_json::from_slice::<BatchReply>(bytes)
+            .map(|v| Some(v.poses.iter().map(|p| flat(&p.matrix)).collect())),
+        (_, false) => serde_json::from_slice::<CompactSingleReply>(bytes)
+            .map(|v| field_of(format, v.matrix, v.position).map(|p| vec![p])),
+        (_, true) => {
+            let field = field_of(format, Some("matrices"), Some("positions")).unwrap_or_default();
+            if let Some(poses) = fast_rows(bytes, field) {
+                return Ok(poses);
+            }
+            serde_json::from_slice::<CompactBatchReply>(bytes)
+                .map(|v| field_of(format, v.matrices, v.positions))
+        }
+    };
+    match decoded {
+        Ok(Some(poses)) => Ok(poses),
+        _ => Err("decode".to_string()),
+    }
+}
+
+/// The gRPC batch request of `q` (`dof` values per configuration): one
+/// `JointConfiguration` per configuration, or all of them in
+/// `packed_configurations` for `grpc-batch-packed`.
+pub(super) fn grpc_batch(
+    args: &crate::LoadArgs,
+    q: &[f64],
+    dof: usize,
+) -> pb::ForwardKinematicsBatchRequest {
+    let mut req = pb::ForwardKinematicsBatchRequest {
+        robot: args.robot.clone(),
+        options: args.pose_format.pb_options(),
+        ..Default::default()
+    };
+    if args.target == Target::GrpcBatchPacked {
+        req.packed_configurations = Some(pb::PackedConfigurations {
+            joint_count: u32::try_from(dof).unwrap_or(u32::MAX),
+            values: q.to_vec(),
+        });
+    } else {
+        req.configurations = q
+            .chunks(dof.max(1))
+            .map(|c| pb::JointConfiguration { joints: c.to_vec() })
+            .collect();
+    }
+    req
+}
+
+/// One packed batch (`application/octet-stream` both ways): the joint values
+/// as little-endian float64, the answer's poses cut into matrices (12
+/// numbers, `[0, 0, 0, 1]` added for `full`, which is answered as `matrix`)
+/// or positions.
+pub(super) async fn rest_packed(
+    http: &reqwest::Client,
+    args: &crate::LoadArgs,
+    q: &[f64],
+) -> Result<Poses, String> {
+    let format = args.pose_format.json_name().unwrap_or("full");
+    let url = format!(
+        "http://{}/v1/robots/{}/fk/batch?pose_format={format}",
+        args.http_addr, args.robot
+    );
+    let body: Vec<u8> = q.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let octets = "application/octet-stream";
+    let request = http
+        .post(url)
+        .header(reqwest::header::CONTENT_TYPE, octets)
+        .header(reqwest::header::ACCEPT, octets)
+        .body(body);
+    let r = match request.send().await {
+        Ok(r) if r.status().is_success() => r,
+        Ok(r) => return Err(format!("http_{}", r.status().as_u16())),
+        Err(_) => return Err("transport".into()),
+    };
+    let bytes = r.bytes().await.map_err(|_| "transport".to_string())?;
+    let values: Vec<f64> = bytes
+        .chunks_exact(8)
+        .filter_map(|c| c.first_chunk::<8>())
+        .map(|b| f64::from_le_bytes(*b))
+        .collect();
+    let stride = if args.pose_format == PoseFormat::Position {
+        3
+    } else {
+        12
+    };
+    if args.pose_format != PoseFormat::Full {
+        return Ok(Poses::Packed { values, stride });
+    }
+    Ok(Poses::Each(
+        values
+            .chunks(stride)
+            .map(|p| [p, &[0.0, 0.0, 0.0, 1.0]].concat())
+            .collect(),
+    ))
+}
+
+/// The numbers of each pose of an answer: a vector per pose, or the packed
+/// numbers of all poses cut into poses of `stride` numbers when looked at
+/// (a compact answer is not copied pose by pose on the measured path).
+pub(super) enum Poses {
+    Each(Vec<Vec<f64>>),
+    Packed { values: Vec<f64>, stride: usize },
+}
+
+impl Poses {
+    /// Number of poses (a short last pose counts, as [`Poses::iter`] yields
+    /// it, so a truncated answer is a wrong pose count, not one pose fewer).
+    pub(super) fn len(&self) -> usize {
+        match self {
+            Poses::Each(v) => v.len(),
+            Poses::Packed { values, stride } => values.len().div_ceil((*stride).max(1)),
+        }
+    }
+
+    /// The numbers of each pose, in order.
+    pub(super) fn iter(&self) -> Box<dyn Iterator<Item = &[f64]> + '_> {
+        match self {
+            Poses::Each(v) => Box::new(v.iter().map(Vec::as_slice)),
+            Poses::Packed { values, stride } => Box::new(values.chunks((*stride).max(1))),
+        }
+    }
+}
+
+/// The numbers of each pose of a gRPC answer: the Pose messages' matrices
+/// (`full`) or the packed values.
+pub(super) fn grpc_poses(
+    poses: Vec<pb::Pose>,
+    packed: Option<pb::PackedPoses>,
+    format: PoseFormat,
+) -> Poses {
+    match packed {
+        Some(p) => Poses::Packed {
+            values: p.values,
+            stride: format.stride(),
+        },
+        None => Poses::Each(poses.into_iter().map(|p| p.matrix).collect()),
+    }
+}
+
+/// Outcome of one stream reply.
+pub(super) enum Reply {
+    Pose(u64, Vec<f64>),
+    /// The poses of a message of many configurations.
+    Poses(u64, Poses),
+    Error(u64, String),
+    Closed(String),
+}
+
+/// A WebSocket FK message: one configuration (`joints`) or many
+/// (`configurations`, with `--per-message` above 1).
+#[derive(serde::Serialize)]
+pub(super) struct WsMessage<'a> {
+    pub(super) id: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) joints: Option<&'a [f64]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) configurations: Option<Vec<&'a [f64]>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) pose_format: Option<&'static str>,
+}
+
+/// A WebSocket reply to many configurations: its id and the poses (in the
+/// batch route's field of the format: `poses`, `matrices` or `positions`)
+/// or the error.
+#[derive(serde::Deserialize)]
+pub(super) struct WsManyReply {
+    id: Option<u64>,
+    poses: Option<Vec<MatrixOnly>>,
+    matrices: Option<Vec<Vec<f64>>>,
+    positions: Option<Vec<Vec<f64>>>,
+    error: Option<WsError>,
+}
+
+/// A WebSocket reply: its id and the pose (in the field of the format asked
+/// for: `pose`, `matrix` or `position`) or the error; other fields are
+/// skipped.
+#[derive(serde::Deserialize)]
+pub(super) struct WsReply {
+    id: Option<u64>,
+    pose: Option<MatrixOnly>,
+    matrix: Option<Vec<f64>>,
+    position: Option<Vec<f64>>,
+    error: Option<WsError>,
+}
+
+#[derive(serde::Deserialize)]
+pub(super) struct WsError {
+    status: Option<u16>,
+}
+
+/// A WebSocket reply as the worker sees it (typed decoding: cheap on the
+/// client, which shares the machine with the server); `many`: a reply to
+/// many configurations.
+pub(super) fn decode_ws(text: &str, format: PoseFormat, many: bool) -> Reply {
+    if many {
+        return decode_ws_many(text, format);
+    }
+    let Ok(r) = serde_json::from_str::<WsReply>(text) else {
+        return Reply::Closed("decode".into());
+    };
+    let pose = match format {
+        PoseFormat::Full => r.pose.map(|p| flat(&p.matrix)),
+        _ => field_of(format, r.matrix, r.position),
+    };
+    match pose {
+        Some(pose) => Reply::Pose(r.id.unwrap_or(u64::MAX), pose),
+        None => {
+            let status = r.error.and_then(|e| e.status).unwrap_or(0);
+            Reply::Error(r.id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
+        }
+    }
+}
+
+/// [`decode_ws`] of a reply to many configurations.
+pub(super) fn decode_ws_many(text: &str, format: PoseFormat) -> Reply {
+    let Ok(r) = serde_json::from_str::<WsManyReply>(text) else {
+        return Reply::Closed("decode".into());
+    };
+    let poses = match format {
+        PoseFormat::Full => r.poses.map(|p| p.iter().map(|p| flat(&p.matrix)).collect()),
+        _ => field_of(format, r.matrices, r.positions),
+    };
+    match poses {
+        Some(poses) => Reply::Poses(r.id.unwrap_or(u64::MAX), Poses::Each(poses)),
+        None => {
+            let status = r.error.and_then(|e| e.status).unwrap_or(0);
+            Reply::Error(r.id.unwrap_or(u64::MAX), format!("ws_error_{status}"))
+        }
+    }
+}
+
+/// Just the matrix of a pose.
+#[derive(serde::Deserialize)]
+pub(super) struct MatrixOnly {
+    matrix: [[f64; 4]; 4],
+}
+
+#[derive(serde::Deserialize)]
+pub(super) struct SingleReply {
+    pose: MatrixOnly,
+}
+
+#[derive(serde::Deserialize)]
+pub(super) struct BatchReply {
+    poses: Vec<MatrixOnly>,
+}
+
+pub(super) fn flat(m: &[[f64; 4]; 4]) -> Vec<f64> {
+    m.iter().flatten().copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rest_replies_are_read_from_the_field_of_their_format() {
+        let single = br#"{"robot":"r","length_unit":"m","matrix":[1,2,3,4,5,6,7,8,9,10,11,12]}"#;
+        let got = decode_rest(single, false, PoseFormat::Matrix).unwrap();
+        assert_eq!(got, vec![(1..=12).map(f64::from).collect::<Vec<_>>()]);
+        let batch = br#"{"robot":"r","length_unit":"m","positions":[[1,2,3],[4,5,6]]}"#;
+        let got = decode_rest(batch, true, PoseFormat::Position).unwrap();
+        assert_eq!(got, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
+        // The shape before the compact fields (numbers in `pose`/`poses`)
+        // and a field of another format are not an answer.
+        assert!(decode_rest(br#"{"pose":[1,2,3]}"#, false, PoseFormat::Position).is_err());
+        assert!(decode_rest(br#"{"poses":[[1,2,3]]}"#, true, PoseFormat::Position).is_err());
+        assert!(decode_rest(batch, true, PoseFormat::Matrix).is_err());
+        // The batch field is read by the fast scanner, and only when the rest
+        // of the body is valid JSON (a trailing comma is not).
+        assert_eq!(
+            fast_rows(batch, "positions"),
+            Some(vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]])
+        );
+        let trailing = br#"{"positions":[[1,2,3]],}"#;
+        assert_eq!(fast_rows(trailing, "positions"), None);
+        assert!(decode_rest(trailing, true, PoseFormat::Position).is_err());
+    }
+
+    #[test]
+    fn websocket_replies_are_read_from_the_field_of_their_format() {
+        let r = decode_ws(
+            r#"{"id":4,"length_unit":"m","position":[1,2,3]}"#,
+            PoseFormat::Position,
+            false,
+        );
+        assert!(matches!(r, Reply::Pose(4, ref p) if p == &[1.0, 2.0, 3.0]));
+        let full = r#"{"id":5,"pose":{"matrix":[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}}"#;
+        let r = decode_ws(full, PoseFormat::Full, false);
+        assert!(matches!(r, Reply::Pose(5, ref p) if p.len() == 16 && p[3] == 1.0));
+        let r = decode_ws(
+            r#"{"id":6,"error":{"status":422}}"#,
+            PoseFormat::Matrix,
+            false,
+        );
+        assert!(matches!(r, Reply::Error(6, ref e) if e == "ws_error_422"));
+        let r = decode_ws(r#"{"id":7,"position":[1,2,3]}"#, PoseFormat::Matrix, false);
+        assert!(matches!(r, Reply::Error(7, _)));
+    }
+
+    #[test]
+    fn websocket_replies_to_many_configurations_are_read_from_the_batch_fields() {
+        let many = |text: &str, format| match decode_ws(text, format, true) {
+            Reply::Poses(id, poses) => {
+                Ok((id, poses.iter().map(<[f64]>::to_vec).collect::<Vec<_>>()))
+            }
+            Reply::Error(id, e) => Err((id, e)),
+            _ => Err((u64::MAX, "closed".into())),
+        };
+        let positions = r#"{"id":8,"length_unit":"m","positions":[[1,2,3],[4,5,6]]}"#;
+        assert_eq!(
+            many(positions, PoseFormat::Position),
+            Ok((8, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]))
+        );
+        let full = r#"{"id":9,"poses":[{"matrix":[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]}"#;
+        let (id, poses) = many(full, PoseFormat::Full).unwrap();
+        assert_eq!(
+            (id, poses.len(), poses[0].len(), poses[0][7]),
+            (9, 1, 16, 2.0)
+        );
+        // The single-configuration field, or another format's, is no answer.
+        assert!(many(r#"{"id":10,"position":[1,2,3]}"#, PoseFormat::Position).is_err());
+        assert!(many(positions, PoseFormat::Matrix).is_err());
+        assert_eq!(
+            many(r#"{"id":11,"error":{"status":413}}"#, PoseFormat::Matrix),
+            Err((11, "ws_error_413".to_string()))
+        );
+    }
+}
