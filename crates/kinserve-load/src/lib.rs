@@ -414,6 +414,48 @@ impl ConfigSource {
     }
 }
 
+/// Distinct configurations a [`ConfigPool`] holds beyond one request's worth.
+const POOL_CONFIGS: usize = 1024;
+
+/// Configurations drawn before the run, handed out as windows: drawing
+/// 60,000 random values for a 10,000-configuration batch took most of the
+/// load generator's time per batch and sat inside the timed request (it
+/// made the gRPC batch ÷ core ratio measure the generator's random numbers).
+/// Each request takes the next window of `per_request` configurations,
+/// starting one past where the previous one started, so consecutive
+/// requests differ; nothing is drawn or allocated per request.
+pub struct ConfigPool {
+    values: Vec<f64>,
+    dof: usize,
+    per_request: usize,
+    next: usize,
+}
+
+impl ConfigPool {
+    /// `POOL_CONFIGS + per_request` configurations from `source`.
+    pub fn new(mut source: ConfigSource, per_request: usize) -> ConfigPool {
+        let dof = source.ranges.len();
+        let count = POOL_CONFIGS + per_request;
+        let mut values = Vec::with_capacity(count * dof);
+        for _ in 0..count {
+            source.fill(&mut values);
+        }
+        ConfigPool {
+            values,
+            dof,
+            per_request,
+            next: 0,
+        }
+    }
+
+    /// The next request's `per_request` configurations, back to back.
+    pub fn take(&mut self) -> &[f64] {
+        let start = self.next;
+        self.next = (self.next + 1) % POOL_CONFIGS;
+        &self.values[start * self.dof..(start + self.per_request) * self.dof]
+    }
+}
+
 /// Checks a returned pose against the library's FK: the 16 values of the
 /// row-major matrix (`full`), its top 12 (`matrix`) or the position (`position`).
 fn verify_pose(robot: &Robot, q: &[f64], values: &[f64], format: PoseFormat) -> bool {
@@ -621,5 +663,36 @@ mod argument_tests {
             let e = run(args).await.expect_err(flag);
             assert!(e.contains(flag), "{flag} {value}: {e}");
         }
+    }
+}
+
+#[cfg(test)]
+mod pool_tests {
+    use super::{ConfigPool, ConfigSource, ModelLimits, POOL_CONFIGS, Robot};
+
+    /// Windows of the asked size, inside the joint ranges, each starting one
+    /// configuration after the previous, wrapping after `POOL_CONFIGS`.
+    #[test]
+    fn the_pool_hands_out_shifted_windows_within_the_limits() {
+        let robot = Robot::from_json(
+            br#"{"name": "two", "convention": "standard", "links": [
+                {"a": 0.4, "alpha": 0, "d": 0, "theta": 0, "joint": "revolute", "limits": [-1, 2]},
+                {"a": 0, "alpha": 0, "d": 0.1, "theta": 0, "joint": "prismatic"}]}"#,
+            &ModelLimits::default(),
+        )
+        .unwrap();
+        let mut pool = ConfigPool::new(ConfigSource::new(&robot, 7), 5);
+        let first = pool.take().to_vec();
+        let second = pool.take().to_vec();
+        assert_eq!(first.len(), 10);
+        assert_eq!(first[2..], second[..8]);
+        assert_ne!(first, second);
+        for q in first.chunks(2) {
+            assert!((-1.0..=2.0).contains(&q[0]) && (0.0..=1.0).contains(&q[1]), "{q:?}");
+        }
+        for _ in 2..POOL_CONFIGS {
+            pool.take();
+        }
+        assert_eq!(pool.take(), first.as_slice());
     }
 }

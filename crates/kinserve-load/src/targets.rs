@@ -9,7 +9,7 @@ use tokio_tungstenite::tungstenite::Message;
 
 mod codec;
 
-use super::{ConfigSource, Plan, Tally, Target, verify_pose};
+use super::{ConfigPool, ConfigSource, Plan, Tally, Target, verify_pose};
 use codec::{
     BatchBody, Poses, Reply, SingleBody, WsMessage, decode_rest, decode_ws, grpc_batch, grpc_poses,
     rest_packed,
@@ -89,7 +89,15 @@ async fn grpc_client(
 pub(super) async fn worker(plan: Arc<Plan>, worker: usize) -> Tally {
     let mut tally = Tally::new();
     let seed = plan.args.seed.wrapping_add(worker as u64 * 7919);
-    let source = plan.robot.as_ref().map(|r| ConfigSource::new(r, seed));
+    let per_request = match plan.args.target {
+        Target::Ws | Target::GrpcStream => plan.args.per_message,
+        t if t.is_batch() => plan.args.batch_size,
+        _ => 1,
+    };
+    let source = plan
+        .robot
+        .as_ref()
+        .map(|r| ConfigPool::new(ConfigSource::new(r, seed), per_request));
     tokio::time::sleep_until((plan.measure_from - plan.args.warmup).into()).await;
     let result = match plan.args.target {
         Target::Ws | Target::GrpcStream => stream_worker(&plan, worker, source, &mut tally).await,
@@ -105,7 +113,7 @@ pub(super) async fn worker(plan: Arc<Plan>, worker: usize) -> Tally {
 async fn unary_worker(
     plan: &Plan,
     worker: usize,
-    mut source: Option<ConfigSource>,
+    mut source: Option<ConfigPool>,
     tally: &mut Tally,
 ) -> Result<(), String> {
     let args = &plan.args;
@@ -131,7 +139,6 @@ async fn unary_worker(
     };
     let mut schedule = Schedule::new(plan, worker);
     let mut count = 0u64;
-    let mut q: Vec<f64> = Vec::new();
     loop {
         schedule.wait().await;
         let now = Instant::now();
@@ -141,12 +148,7 @@ async fn unary_worker(
         }
         count += 1;
         let measuring = plan.measuring(t0);
-        q.clear();
-        if let Some(src) = source.as_mut() {
-            for _ in 0..per_request {
-                src.fill(&mut q);
-            }
-        }
+        let q: &[f64] = source.as_mut().map_or(&[], ConfigPool::take);
         let dof = plan.robot.as_ref().map_or(0, |r| r.dof());
         // Returns matrices of the poses received, or an error kind.
         let outcome: Result<Poses, String> = match args.target {
@@ -227,7 +229,7 @@ async fn unary_worker(
                 };
                 let req = pb::ForwardKinematicsRequest {
                     robot: args.robot.clone(),
-                    joints: q.clone(),
+                    joints: q.to_vec(),
                     options: args.pose_format.pb_options(),
                 };
                 match c.forward_kinematics(req).await {
@@ -488,7 +490,7 @@ async fn grpc_transport(plan: &Plan) -> Result<(Outbound, Replies), String> {
 async fn stream_worker(
     plan: &Plan,
     worker: usize,
-    source: Option<ConfigSource>,
+    source: Option<ConfigPool>,
     tally: &mut Tally,
 ) -> Result<(), String> {
     let args = &plan.args;
@@ -509,10 +511,7 @@ async fn stream_worker(
             now < plan.measure_until && (args.max_requests == 0 || count < args.max_requests);
         if open && inflight.len() < args.pipeline && schedule.due(now) {
             let t0 = schedule.take(now);
-            let mut q = Vec::with_capacity(8 * args.per_message);
-            for _ in 0..args.per_message {
-                source.fill(&mut q);
-            }
+            let q = source.take().to_vec();
             let id = next_id;
             next_id += 1;
             count += 1;

@@ -136,7 +136,10 @@ pub(super) async fn rest_packed(
         "http://{}/v1/robots/{}/fk/batch?pose_format={format}",
         args.http_addr, args.robot
     );
-    let body: Vec<u8> = q.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let mut body: Vec<u8> = Vec::with_capacity(q.len() * 8);
+    for x in q {
+        body.extend_from_slice(&x.to_le_bytes());
+    }
     let octets = "application/octet-stream";
     let request = http
         .post(url)
