@@ -12,9 +12,9 @@ use crate::error::{Error, Result};
 use crate::kinematics::Transform;
 use crate::model::operations::{ConfigAnswers, ConfigOp, ConfigSpec};
 use crate::model::{
-    FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkPathAnswer, IkPathSpec, IkSpec, JacobianAnswer,
-    JacobianBatchSpec, JacobianSpec, LengthUnit, ModelLimits, PoseFormat, Robot, RobotSpec,
-    StreamOp,
+    BatchPoses, FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkPathAnswer, IkPathSpec, IkSpec,
+    JacobianAnswer, JacobianBatchSpec, JacobianSpec, JointBatch, LengthUnit, ModelLimits,
+    PoseFormat, Robot, RobotSpec, StreamOp,
 };
 use crate::registry::{ClosedFormResult, Condition, Entry, Origin, PutMode, Registry};
 
@@ -439,13 +439,30 @@ impl Service {
     /// Checked FK of many configurations, poses in request order. One bad
     /// configuration fails the whole batch, naming it (`configurations[17][2]`).
     pub fn fk_batch(&self, robot: &Robot, spec: &FkBatchSpec) -> Result<Vec<Transform>> {
+        self.fk_batch_with(robot, spec, FkBatchCompute::TRANSFORMS)
+    }
+
+    /// [`Service::fk_batch`] with the poses in the spec's format, the
+    /// compact ones written by the kernel straight into the answer's one
+    /// vector ([`JointBatch::fk_as`]), for the binary and gRPC answers.
+    pub fn fk_batch_as_format(&self, robot: &Robot, spec: &FkBatchSpec) -> Result<BatchPoses> {
+        self.fk_batch_with(robot, spec, FkBatchCompute::IN_FORMAT)
+    }
+
+    /// Checks the batch, then `compute` on it.
+    fn fk_batch_with<T>(
+        &self,
+        robot: &Robot,
+        spec: &FkBatchSpec,
+        compute: FkBatchCompute<T>,
+    ) -> Result<T> {
         let c = &spec.configurations;
         self.check_batch_size(c.len())?;
         let batch = crate::trace_span!("validate")
             .in_scope(|| robot.check_batch(&c.values, &c.lens, &spec.options))?;
         Ok(
             crate::trace_span!("compute", kinserve.batch_size = c.len() as i64)
-                .in_scope(|| batch.fk()),
+                .in_scope(|| (compute.0)(&batch, spec.pose_format)),
         )
     }
 }
@@ -664,14 +681,18 @@ impl Service {
     /// [`Service::fk_batch`] on the compute pool, under one of `client`'s
     /// permits; a batch of at most [`FK_BATCH_INLINE`] configurations on the
     /// caller's thread instead, as a single FK is.
-    pub async fn fk_batch_on_pool(
+    /// `compute` says what the poses are computed into
+    /// ([`FkBatchCompute::TRANSFORMS`] for JSON answers,
+    /// [`FkBatchCompute::IN_FORMAT`] for binary and gRPC ones).
+    pub async fn fk_batch_on_pool<T: Send + 'static>(
         self: &Arc<Self>,
         client: ClientId,
         robot: Arc<Entry>,
         spec: FkBatchSpec,
-    ) -> Result<(Vec<Transform>, FkBatchSpec)> {
+        compute: FkBatchCompute<T>,
+    ) -> Result<(T, FkBatchSpec)> {
         if spec.configurations.len() <= FK_BATCH_INLINE {
-            let poses = self.fk_batch(&robot.robot, &spec)?;
+            let poses = self.fk_batch_with(&robot.robot, &spec, compute)?;
             return Ok((poses, spec));
         }
         self.check_batch_size(spec.configurations.len())?;
@@ -679,7 +700,7 @@ impl Service {
         self.pool
             .run(client, move |_| {
                 // One kernel pass: 10,000 poses take well under a millisecond.
-                let poses = this.fk_batch(&robot.robot, &spec)?;
+                let poses = this.fk_batch_with(&robot.robot, &spec, compute)?;
                 Ok((poses, spec))
             })
             .await
@@ -755,6 +776,29 @@ pub enum StreamAnswer {
     },
 }
 
+/// What an FK batch's poses are computed into, from the checked batch and
+/// the spec's pose format: a plain function, so it crosses to the compute
+/// pool without capturing anything.
+pub struct FkBatchCompute<T>(fn(&JointBatch<'_>, PoseFormat) -> T);
+
+impl<T> Clone for FkBatchCompute<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<T> Copy for FkBatchCompute<T> {}
+
+impl FkBatchCompute<Vec<Transform>> {
+    /// Transforms, whatever the format (the JSON answers are written from them).
+    pub const TRANSFORMS: Self = FkBatchCompute(|batch, _| batch.fk());
+}
+
+impl FkBatchCompute<BatchPoses> {
+    /// The poses in the spec's format ([`JointBatch::fk_as`]).
+    pub const IN_FORMAT: Self = FkBatchCompute(|batch, format| batch.fk_as(format));
+}
+
 /// One stream message, the same for the WebSocket and the gRPC stream.
 impl Service {
     /// Answers one stream message for `entry`: FK (with the Jacobian and the
@@ -780,8 +824,13 @@ impl Service {
                 Box::pin(self.ik_path_on_pool(client, entry, *spec)).await?,
             )),
             StreamOp::FkBatch(spec) => {
-                let (poses, spec) =
-                    Box::pin(self.fk_batch_on_pool(client, entry.clone(), spec)).await?;
+                let (poses, spec) = Box::pin(self.fk_batch_on_pool(
+                    client,
+                    entry.clone(),
+                    spec,
+                    FkBatchCompute::TRANSFORMS,
+                ))
+                .await?;
                 entry.count_poses(protocol, poses.len() as u64);
                 Ok(StreamAnswer::FkBatch {
                     poses,

@@ -8,7 +8,7 @@
 //!   (configuration after configuration), so its length is `n × dof × 8`
 //!   bytes ([`configurations_from_le`]);
 //! - an FK answer is `n` poses of `k` numbers each, in request order
-//!   ([`poses_to_le`]): `k = 12` for the `matrix` pose format (the top three
+//!   ([`poses_to_le`], [`batch_poses_to_le`]): `k = 12` for the `matrix` pose format (the top three
 //!   rows of the homogeneous 4×4 matrix, row-major: `r11 r12 r13 x r21 r22
 //!   r23 y r31 r32 r33 z`, the numbers of REST's `matrices` and of
 //!   `PackedPoses` in `POSE_FORMAT_MATRIX`), `k = 3` for `position`
@@ -27,10 +27,12 @@
 //! Depends on the model, the kinematics crate and [`crate::pb`] only.
 
 use kinserve_kinematics::Transform;
-use kinserve_model::{Configurations, JacobianAnswer, LengthUnit, ModelError, PoseFormat, Result};
+use kinserve_model::{
+    BatchPoses, Configurations, JacobianAnswer, LengthUnit, ModelError, PoseFormat, Result,
+};
 
 use crate::pb;
-use crate::pose::{packed_to_pb, pose_to_pb};
+use crate::pose::pose_to_pb;
 
 /// Bytes of one packed number.
 pub const F64_BYTES: usize = 8;
@@ -117,10 +119,27 @@ pub fn poses_to_le<'a>(
     out
 }
 
-/// Appends `values` as little-endian float64.
+/// The poses of a batch as a packed answer: the compact formats' numbers
+/// as they are (one copy into bytes), `full` written as `matrix` (see
+/// [`poses_to_le`]).
+pub fn batch_poses_to_le(poses: &BatchPoses) -> Vec<u8> {
+    match poses {
+        BatchPoses::Full(t) => poses_to_le(PoseFormat::Full, t.iter()),
+        BatchPoses::Matrix(v) | BatchPoses::Position(v) => {
+            let mut out = Vec::new();
+            push_le(&mut out, v);
+            out
+        }
+    }
+}
+
+/// Appends `values` as little-endian float64 (sized once, then one
+/// fixed-size copy per value, which compiles to a block copy).
 fn push_le(out: &mut Vec<u8>, values: &[f64]) {
-    for v in values {
-        out.extend_from_slice(&v.to_le_bytes());
+    let start = out.len();
+    out.resize(start + values.len() * F64_BYTES, 0);
+    for (bytes, v) in out[start..].chunks_exact_mut(F64_BYTES).zip(values) {
+        bytes.copy_from_slice(&v.to_le_bytes());
     }
 }
 
@@ -130,10 +149,9 @@ fn push_le(out: &mut Vec<u8>, values: &[f64]) {
 pub fn fk_batch_to_pb(
     robot: &str,
     length_unit: LengthUnit,
-    format: PoseFormat,
-    poses: &[Transform],
+    poses: BatchPoses,
 ) -> pb::ForwardKinematicsBatchResponse {
-    let (poses, packed_poses) = fk_batch_poses_to_pb(format, poses);
+    let (poses, packed_poses) = fk_batch_poses_to_pb(poses);
     pb::ForwardKinematicsBatchResponse {
         robot: robot.to_string(),
         length_unit: pb::LengthUnit::from(length_unit) as i32,
@@ -143,17 +161,20 @@ pub fn fk_batch_to_pb(
 }
 
 /// The poses of an FK batch as its two fields: `poses` (Pose messages) for
-/// `full`, else one `packed_poses` (one pre-sized vector, nothing per pose).
-/// [`fk_batch_to_pb`] and the gRPC stream's many-configuration reply both
-/// write them, so their numbers are the same.
-pub fn fk_batch_poses_to_pb(
-    format: PoseFormat,
-    poses: &[Transform],
-) -> (Vec<pb::Pose>, Option<pb::PackedPoses>) {
-    match packed_to_pb(format, poses.iter()) {
-        Some(packed) => (Vec::new(), Some(packed)),
-        None => (poses.iter().map(pose_to_pb).collect(), None),
-    }
+/// `full`, else one `packed_poses` holding the batch's vector of numbers
+/// as it is (moved, not copied). [`fk_batch_to_pb`] and the gRPC stream's
+/// many-configuration reply both write them, so their numbers are the same.
+pub fn fk_batch_poses_to_pb(poses: BatchPoses) -> (Vec<pb::Pose>, Option<pb::PackedPoses>) {
+    let (format, values) = match poses {
+        BatchPoses::Full(t) => return (t.iter().map(pose_to_pb).collect(), None),
+        BatchPoses::Matrix(v) => (pb::PoseFormat::Matrix, v),
+        BatchPoses::Position(v) => (pb::PoseFormat::Position, v),
+    };
+    let packed = pb::PackedPoses {
+        format: format as i32,
+        values,
+    };
+    (Vec::new(), Some(packed))
 }
 
 /// Numbers per result of a packed Jacobian answer for `dof` joints.

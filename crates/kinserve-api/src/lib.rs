@@ -49,8 +49,9 @@ mod urdf;
 mod wire;
 
 pub use batch::{
-    F64_BYTES, configurations_from_le, fk_batch_poses_to_pb, fk_batch_to_pb, jacobian_batch_to_pb,
-    jacobian_stride, jacobians_to_le, packed_count, packed_format, poses_to_le,
+    F64_BYTES, batch_poses_to_le, configurations_from_le, fk_batch_poses_to_pb, fk_batch_to_pb,
+    jacobian_batch_to_pb, jacobian_stride, jacobians_to_le, packed_count, packed_format,
+    poses_to_le,
 };
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{

@@ -3,8 +3,11 @@
 //! ([`crate::eval`]). The row types it is built from live in [`crate::dh`].
 //!
 //! Depends on [`crate::dh`], [`crate::program`], [`crate::eval`],
-//! [`crate::kernel`] and [`crate::transform`].
+//! [`crate::batch_out`], [`crate::kernel`] and [`crate::transform`].
 
+use std::mem::MaybeUninit;
+
+use crate::batch_out::{Matrix12Out, PackedLayout, PositionOut};
 use crate::dh::{Convention, DhRow, JointKind};
 use crate::eval;
 use crate::kernel::Kernel;
@@ -271,5 +274,114 @@ impl Chain {
     ) {
         // SAFETY: `or_portable` only returns a kernel this CPU supports.
         unsafe { eval::forward_batch_on(kernel.or_portable(), &self.program, q, angle_scale, out) }
+    }
+
+    /// [`Chain::forward_batch`] with each pose written as the numbers of
+    /// `layout`, back to back in `out` (one pose per `layout.stride()`
+    /// numbers, up to `out.len() / stride`; a trailing partial pose is left
+    /// alone), straight from the kernel: the same numbers, bit for bit, as
+    /// the transforms [`Chain::forward_batch`] gives. Allocates nothing.
+    ///
+    /// ```
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, PackedLayout, Transform};
+    ///
+    /// let row = |a: f64| DhRow { kind: JointKind::Revolute, a, alpha: 0.0, d: 0.0, theta: 0.0 };
+    /// let chain = Chain::new(Convention::Standard, &[row(1.0), row(0.5)], Transform::IDENTITY, None);
+    /// let q = [0.0, 0.0, 0.3, -0.2, 1.0, 0.5]; // three configurations of two joints
+    /// let mut positions = [0.0; 9];
+    /// chain.forward_batch_packed(&q, 1.0, PackedLayout::Position, &mut positions);
+    /// assert_eq!(positions[..3], [1.5, 0.0, 0.0]); // stretched along x (lengths in the table's unit)
+    /// let mut poses = [Transform::IDENTITY; 3];
+    /// chain.forward_batch(&q, 1.0, &mut poses);
+    /// assert_eq!(positions[6..], poses[2].translation);
+    /// ```
+    pub fn forward_batch_packed(
+        &self,
+        q: &[f64],
+        angle_scale: f64,
+        layout: PackedLayout,
+        out: &mut [f64],
+    ) {
+        self.forward_batch_packed_with(Kernel::best(), q, angle_scale, layout, out)
+    }
+
+    /// [`Chain::forward_batch_packed`] on a given kernel (the portable one if the CPU lacks it).
+    pub fn forward_batch_packed_with(
+        &self,
+        kernel: Kernel,
+        q: &[f64],
+        angle_scale: f64,
+        layout: PackedLayout,
+        out: &mut [f64],
+    ) {
+        let out: *mut [f64] = out;
+        // SAFETY: `MaybeUninit<f64>` has the layout of `f64`, and the
+        // evaluators only ever write initialised doubles through it, so
+        // `out` stays initialised.
+        let out = unsafe { &mut *(out as *mut [MaybeUninit<f64>]) };
+        self.packed_into(kernel, q, angle_scale, layout, out);
+    }
+
+    /// [`Chain::forward_batch_packed`] into a new vector of `count` poses
+    /// (fewer if `q` holds fewer configurations), its memory written once,
+    /// by the kernel: nothing is zeroed first.
+    ///
+    /// ```
+    /// use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, PackedLayout, Transform};
+    ///
+    /// let row = DhRow { kind: JointKind::Prismatic, a: 0.0, alpha: 0.0, d: 0.1, theta: 0.0 };
+    /// let chain = Chain::new(Convention::Standard, &[row], Transform::IDENTITY, None);
+    /// let z = chain.forward_batch_packed_vec(&[0.0, 0.5], 2, 1.0, PackedLayout::Position);
+    /// assert_eq!(z, [0.0, 0.0, 0.1, 0.0, 0.0, 0.6]);
+    /// ```
+    pub fn forward_batch_packed_vec(
+        &self,
+        q: &[f64],
+        count: usize,
+        angle_scale: f64,
+        layout: PackedLayout,
+    ) -> Vec<f64> {
+        let dof = self.dof();
+        // A chain without joints has `count` poses whatever `q` holds.
+        let count = q.len().checked_div(dof).map_or(count, |n| count.min(n));
+        let len = count * layout.stride();
+        let mut out = Vec::with_capacity(len);
+        self.packed_into(
+            Kernel::best(),
+            q,
+            angle_scale,
+            layout,
+            &mut out.spare_capacity_mut()[..len],
+        );
+        // SAFETY: the evaluator wrote every pose of `out` whole: poses
+        // `0..min(q.len() / dof, count)` = `0..count`, or all `count` poses of a
+        // chain without joints, `stride` numbers each, so `0..len` is initialised.
+        unsafe { out.set_len(len) };
+        out
+    }
+
+    /// The packed batch into `out`: every pose `0..min(configurations,
+    /// out.len() / stride)` is written whole (all of them for a chain
+    /// without joints), nothing else.
+    fn packed_into(
+        &self,
+        kernel: Kernel,
+        q: &[f64],
+        angle_scale: f64,
+        layout: PackedLayout,
+        out: &mut [MaybeUninit<f64>],
+    ) {
+        let (kernel, p) = (kernel.or_portable(), &self.program);
+        // SAFETY: `or_portable` only returns a kernel this CPU supports.
+        unsafe {
+            match layout {
+                PackedLayout::Matrix12 => {
+                    eval::forward_batch_on(kernel, p, q, angle_scale, &mut Matrix12Out(out))
+                }
+                PackedLayout::Position => {
+                    eval::forward_batch_on(kernel, p, q, angle_scale, &mut PositionOut(out))
+                }
+            }
+        }
     }
 }

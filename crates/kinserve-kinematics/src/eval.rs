@@ -11,8 +11,10 @@
 //! - Batch: blocks of 8 poses in structure-of-arrays form (every matrix entry an
 //!   8-wide vector: one AVX-512 register), one dispatch per joint per block.
 //!
-//! Depends on [`crate::program`], [`crate::step`], [`crate::sincos`] and
-//! [`crate::kernel`]. Unchecked by design, like the [`crate::Chain`] methods.
+//! Depends on [`crate::program`], [`crate::step`], [`crate::sincos`],
+//! [`crate::kernel`] and [`crate::batch_out`] (where batch poses go:
+//! transforms or packed numbers). Unchecked by design, like the
+//! [`crate::Chain`] methods.
 #![allow(
     clippy::needless_range_loop,
     reason = "lane loops index several arrays in step; they vectorise as written"
@@ -20,6 +22,7 @@
 
 use std::mem::MaybeUninit;
 
+use crate::batch_out::BatchOut;
 use crate::kernel::Kernel;
 use crate::lane::{Arr, Lane, Lane8};
 #[cfg(target_arch = "x86_64")]
@@ -382,35 +385,36 @@ unsafe fn forward_frames<const FMA: bool, V: Col4, S: FrameSink>(
 /// # Safety
 /// See [`Lane8::load8`] and [`Col4::load`].
 #[inline(always)]
-unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
+unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4, O: BatchOut + ?Sized>(
     p: &Program,
     q: &[f64],
     scale: f64,
-    out: &mut [Transform],
+    out: &mut O,
 ) {
     let dof = p.steps.len();
     if dof == 0 {
         // No joint: every (empty) configuration has the one constant pose.
-        out.fill(from_cols(&p.base));
+        let pose = from_cols(&p.base);
+        for i in 0..out.count() {
+            out.put(i, &pose);
+        }
         return;
     }
-    let count = (q.len() / dof).min(out.len());
+    let count = (q.len() / dof).min(out.count());
     let blocks = count / LANES;
     for b in 0..blocks {
-        let (qb, ob) = (
-            &q[b * LANES * dof..(b + 1) * LANES * dof],
-            &mut out[b * LANES..(b + 1) * LANES],
-        );
+        let qb = &q[b * LANES * dof..(b + 1) * LANES * dof];
         // SAFETY: forwarded from this function's own contract.
-        if !unsafe { batch_block::<FMA, V>(p, qb, scale, ob) } {
+        if !unsafe { batch_block::<FMA, V, O>(p, qb, scale, out, b * LANES) } {
             // Rare: an angle beyond the polynomial's range; redo these poses one
             // by one (the single path falls back to `std` per joint).
-            redo::<FMA>(p, q, scale, out, b * LANES..(b + 1) * LANES);
+            redo::<FMA, O>(p, q, scale, out, b * LANES..(b + 1) * LANES);
         }
     }
     for i in blocks * LANES..count {
         // SAFETY: forwarded from this function's own contract.
-        out[i] = unsafe { forward::<FMA, W>(p, &q[i * dof..(i + 1) * dof], scale) };
+        let pose = unsafe { forward::<FMA, W>(p, &q[i * dof..(i + 1) * dof], scale) };
+        out.put(i, &pose);
     }
 }
 
@@ -418,17 +422,18 @@ unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4>(
 /// kernel's target features: correct everywhere, and rare).
 #[cold]
 #[inline(never)]
-fn redo<const FMA: bool>(
+fn redo<const FMA: bool, O: BatchOut + ?Sized>(
     p: &Program,
     q: &[f64],
     scale: f64,
-    out: &mut [Transform],
+    out: &mut O,
     range: std::ops::Range<usize>,
 ) {
     let dof = p.steps.len();
     for i in range {
         // SAFETY: `Arr` needs no target feature.
-        out[i] = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
+        let pose = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
+        out.put(i, &pose);
     }
 }
 
@@ -471,17 +476,19 @@ fn block_joint<const FMA: bool>(
 /// Eight poses in structure-of-arrays form: every entry of the 3×4 state is an
 /// 8-wide vector, so each step is whole-vector arithmetic; the joint kind is
 /// dispatched once per joint for all eight. No call inside, so the state stays
-/// in registers. Returns false if an angle needs `std` trigonometry (the poses
-/// are then wrong and the caller redoes them).
+/// in registers. The poses go to `out` as poses `first..first + 8`. Returns
+/// false if an angle needs `std` trigonometry (the poses are then wrong and
+/// the caller redoes them).
 ///
 /// # Safety
 /// See [`Lane8::load8`].
 #[inline(always)]
-unsafe fn batch_block<const FMA: bool, V: Lane8>(
+unsafe fn batch_block<const FMA: bool, V: Lane8, O: BatchOut + ?Sized>(
     p: &Program,
     q: &[f64],
     scale: f64,
-    out: &mut [Transform],
+    out: &mut O,
+    first: usize,
 ) -> bool {
     let dof = p.steps.len();
     let cfg: [&[f64]; LANES] = std::array::from_fn(|k| &q[k * dof..(k + 1) * dof]);
@@ -512,9 +519,7 @@ unsafe fn batch_block<const FMA: bool, V: Lane8>(
         }
     }
     // One pose per lane, after the loop above (which keeps the vectors in registers).
-    if let Some(out) = out.first_chunk_mut::<LANES>() {
-        V::store_poses(&m, out);
-    }
+    out.put8(first, &m);
     ok
 }
 
@@ -554,9 +559,14 @@ macro_rules! instantiate {
             )?
 
             #[target_feature(enable = $features)]
-            pub(super) fn forward_batch(p: &Program, q: &[f64], scale: f64, out: &mut [Transform]) {
+            pub(super) fn forward_batch<O: BatchOut + ?Sized>(
+                p: &Program,
+                q: &[f64],
+                scale: f64,
+                out: &mut O,
+            ) {
                 // SAFETY: as in `forward`.
-                unsafe { super::forward_batch::<true, $batch, Ymm>(p, q, scale, out) }
+                unsafe { super::forward_batch::<true, $batch, Ymm, O>(p, q, scale, out) }
             }
         }
     };
@@ -635,17 +645,17 @@ pub(crate) unsafe fn forward_frames_on(
 ///
 /// # Safety
 /// The CPU must support `kernel` ([`Kernel::is_supported`]).
-pub(crate) unsafe fn forward_batch_on(
+pub(crate) unsafe fn forward_batch_on<O: BatchOut + ?Sized>(
     kernel: Kernel,
     p: &Program,
     q: &[f64],
     scale: f64,
-    out: &mut [Transform],
+    out: &mut O,
 ) {
     match kernel {
         // SAFETY: `Arr` needs no target feature.
         Kernel::Portable => unsafe {
-            forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out)
+            forward_batch::<false, Arr<false, 8>, Arr<false, 4>, O>(p, q, scale, out)
         },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
@@ -655,6 +665,6 @@ pub(crate) unsafe fn forward_batch_on(
         Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.
-        _ => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>>(p, q, scale, out) },
+        _ => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>, O>(p, q, scale, out) },
     }
 }

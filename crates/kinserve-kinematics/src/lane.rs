@@ -17,6 +17,8 @@
     reason = "lane loops index several arrays in step; they vectorise as written"
 )]
 
+use std::mem::MaybeUninit;
+
 use crate::sincos::madd;
 use crate::transform::Transform;
 
@@ -102,6 +104,21 @@ pub(crate) trait Lane8: Lane {
                 ],
                 translation: [e[0][3][k], e[1][3][k], e[2][3][k]],
             };
+        }
+    }
+
+    /// Writes eight poses as 12 numbers each, the top three rows of the
+    /// homogeneous matrix row-major (pose `k` at `out[12k..12k + 12]`; `m`
+    /// as in [`Lane8::store_poses`]).
+    #[inline(always)]
+    fn store_matrix12(m: &[[Self; 4]; 3], out: &mut [MaybeUninit<f64>; 96]) {
+        let e = m.map(|row| row.map(Self::store8));
+        for (k, o) in out.chunks_exact_mut(12).enumerate() {
+            for r in 0..3 {
+                for c in 0..4 {
+                    o[4 * r + c].write(e[r][c][k]);
+                }
+            }
         }
     }
 }
@@ -332,6 +349,7 @@ mod zmm {
         _mm512_shuffle_f64x2, _mm512_storeu_pd, _mm512_unpackhi_pd, _mm512_unpacklo_pd,
         _mm512_xor_pd,
     };
+    use std::mem::MaybeUninit;
 
     /// Eight doubles in one AVX-512 register, with fused multiply-add.
     ///
@@ -381,6 +399,27 @@ mod zmm {
             // SAFETY: `a` is 8 writable doubles; a `Zmm` exists only on a CPU with AVX-512F.
             unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
             a
+        }
+
+        /// The eight poses as matrix rows, by the same transposes as
+        /// [`Lane8::store_poses`]: each pose's rows 0 and 1 (8 numbers) as an
+        /// 8 × 8 block, row 2 as an 8 × 4 one.
+        #[inline(always)]
+        fn store_matrix12(m: &[[Self; 4]; 3], out: &mut [MaybeUninit<f64>; 96]) {
+            let [[r00, r01, r02, x], [r10, r11, r12, y], [r20, r21, r22, z]] = *m;
+            let rows = [r00, r01, r02, x, r10, r11, r12, y].map(|v| v.0);
+            let base: *mut f64 = out.as_mut_ptr().cast();
+            // SAFETY: a `Zmm` exists only on a CPU with AVX-512F (and AVX);
+            // `out` is 96 writable doubles and pose `k`'s are
+            // `base[12k..12k + 12]`: every store below is inside them.
+            unsafe {
+                let t = transpose8(rows);
+                let tail = transpose8x4([r20.0, r21.0, r22.0, z.0]);
+                for k in 0..8 {
+                    _mm512_storeu_pd(base.add(12 * k), t[k]);
+                    _mm256_storeu_pd(base.add(12 * k + 8), tail[k]);
+                }
+            }
         }
 
         /// The eight poses by an in-register transpose: each pose's first

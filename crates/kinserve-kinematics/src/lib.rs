@@ -40,6 +40,7 @@
 
 #[cfg(feature = "ik")]
 pub mod analytic_ik;
+mod batch_out;
 mod chain;
 #[cfg(feature = "nalgebra")]
 mod convert;
@@ -55,6 +56,7 @@ pub mod sincos;
 mod step;
 mod transform;
 
+pub use batch_out::PackedLayout;
 pub use chain::Chain;
 pub use dh::{Convention, DhRow, JointKind, link_transform};
 pub use jacobian::{Jacobian, JacobianFrame};

@@ -688,7 +688,10 @@ mod pool_tests {
         assert_eq!(first[2..], second[..8]);
         assert_ne!(first, second);
         for q in first.chunks(2) {
-            assert!((-1.0..=2.0).contains(&q[0]) && (0.0..=1.0).contains(&q[1]), "{q:?}");
+            assert!(
+                (-1.0..=2.0).contains(&q[0]) && (0.0..=1.0).contains(&q[1]),
+                "{q:?}"
+            );
         }
         for _ in 2..POOL_CONFIGS {
             pool.take();

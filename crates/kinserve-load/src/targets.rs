@@ -167,7 +167,7 @@ async fn unary_worker(
                     (
                         format!("http://{}/v1/robots/{}/fk", args.http_addr, args.robot),
                         serde_json::to_vec(&SingleBody {
-                            joints: &q,
+                            joints: q,
                             pose_format,
                         }),
                     )
@@ -201,7 +201,7 @@ async fn unary_worker(
                     Err(_) => Err("transport".into()),
                 }
             }
-            Target::RestBatchPacked => rest_packed(&http, args, &q).await,
+            Target::RestBatchPacked => rest_packed(&http, args, q).await,
             Target::GrpcHealth => {
                 let Some(h) = health.as_mut() else {
                     return Err("no health client".into());
@@ -245,7 +245,7 @@ async fn unary_worker(
                 let Some(c) = grpc.as_mut() else {
                     return Err("no grpc client".into());
                 };
-                let req = grpc_batch(args, &q, dof);
+                let req = grpc_batch(args, q, dof);
                 match c.forward_kinematics_batch(req).await {
                     Ok(r) => {
                         let r = r.into_inner();

@@ -3,12 +3,14 @@
 //! path) and what they make, [`JointVector`] and [`JointBatch`]: the only
 //! input a robot's FK accepts.
 //!
-//! Depends on [`crate::robot`] (the validated robot and its joints) and
+//! Depends on [`crate::robot`] (the validated robot and its joints),
+//! [`crate::pose_format`] (the formats a batch is answered in) and
 //! [`crate::error`]; `robot.rs` must not depend on this module.
 
-use kinserve_kinematics::{JointKind, Transform};
+use kinserve_kinematics::{JointKind, PackedLayout, Transform};
 
 use crate::error::{ModelError, Result};
+use crate::pose_format::{BatchPoses, PoseFormat};
 use crate::robot::{FkOptions, Joint, Robot, round6};
 use crate::spec::AngleUnit;
 use crate::{MAX_MAGNITUDE, MAX_REVOLUTE_RAD};
@@ -227,14 +229,25 @@ impl Robot {
                 [scale, lo.max(-max), hi.min(max)]
             })
             .collect();
-        let mut ok = true;
-        for q in values.chunks_exact(dof) {
-            for (x, [scale, lo, hi]) in q.iter().zip(&bounds) {
-                let y = x * scale;
+        // The bounds repeated for 8 configurations, as three flat rows: the
+        // values then pass in runs of `8 × dof` against them, one flat loop
+        // the compiler vectorises (per configuration it did not: `dof` is
+        // not a vector width).
+        let period = 8 * dof;
+        let row =
+            |k: usize| -> Vec<f64> { bounds.iter().cycle().take(period).map(|b| b[k]).collect() };
+        let (scale, lo, hi) = (row(0), row(1), row(2));
+        let within = |run: &[f64]| {
+            let mut ok = true;
+            for (((x, s), lo), hi) in run.iter().zip(&scale).zip(&lo).zip(&hi) {
+                let y = x * s;
                 ok &= (y >= *lo) & (y <= *hi);
             }
-        }
-        ok
+            ok
+        };
+        let runs = values.chunks_exact(period);
+        let tail = runs.remainder();
+        runs.fold(true, |ok, run| ok & within(run)) & within(tail)
     }
 
     /// Checked FK: validates `q` (see [`Robot::check_joints`]) and returns the tool pose.
@@ -361,12 +374,62 @@ impl<'a> JointBatch<'a> {
         self.fk_into(&mut out);
         out
     }
+
+    /// Tool poses, in order, in `format`: transforms for `full`, else the
+    /// compact numbers written by the batch kernel straight into the one
+    /// vector of the answer (the same numbers, bit for bit, as
+    /// [`PoseFormat::pack`] of [`JointBatch::fk`]).
+    pub fn fk_as(&self, format: PoseFormat) -> BatchPoses {
+        let Some(layout) = format.layout() else {
+            return BatchPoses::Full(self.fk());
+        };
+        let chain = self.robot.chain();
+        let out = chain.forward_batch_packed_vec(self.values, self.count, self.angle_scale, layout);
+        match layout {
+            PackedLayout::Matrix12 => BatchPoses::Matrix(out),
+            PackedLayout::Position => BatchPoses::Position(out),
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::ModelLimits;
+
+    /// A batch in a compact format holds exactly the numbers of the
+    /// transforms packed afterwards (35 configurations: four blocks and a tail).
+    #[test]
+    fn a_batch_in_a_format_is_the_packed_transforms() {
+        let robot = Robot::from_json(
+            br#"{"name": "three", "convention": "modified", "links": [
+                {"a": 0, "alpha": 0, "d": 0.3, "theta": 0, "joint": "revolute"},
+                {"a": 0.2, "alpha": 1.5707963267948966, "d": 0, "theta": 0, "joint": "revolute"},
+                {"a": 0.4, "alpha": 0, "d": 0.1, "theta": 0, "joint": "prismatic"}]}"#,
+            &ModelLimits::default(),
+        )
+        .unwrap();
+        let values: Vec<f64> = (0..35 * 3).map(|i| (i as f64 * 0.37).sin()).collect();
+        let lens = vec![3u32; 35];
+        let batch = robot
+            .check_batch(&values, &lens, &FkOptions::default())
+            .unwrap();
+        let poses = batch.fk();
+        assert_eq!(
+            batch.fk_as(PoseFormat::Full),
+            BatchPoses::Full(poses.clone())
+        );
+        for format in [PoseFormat::Matrix, PoseFormat::Position] {
+            let packed = batch.fk_as(format);
+            assert_eq!((packed.format(), packed.len()), (format, 35));
+            let (BatchPoses::Matrix(v) | BatchPoses::Position(v)) = &packed else {
+                panic!("{format:?} answered as transforms");
+            };
+            let expected = format.pack(poses.iter());
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(v), bits(&expected), "{format:?}");
+        }
+    }
 
     /// The one-pass batch check accepts exactly the values the per-value
     /// check accepts: every value at, just inside and just outside each
@@ -419,6 +482,14 @@ mod tests {
                             slow,
                             "joint {j} x {x:e} {unit:?} {check_limits}"
                         );
+                        // Among 10 good configurations: in a whole run of
+                        // eight (position 3) and in the tail (position 9).
+                        for at in [3, 9] {
+                            let mut batch = [0.0, 0.1, 0.0].repeat(11);
+                            batch[3 * at + j] = x;
+                            let fast = robot.batch_within_bounds(&batch, &opts);
+                            assert_eq!(fast, slow, "joint {j} x {x:e} at {at}");
+                        }
                         agreed += usize::from(slow);
                     }
                 }

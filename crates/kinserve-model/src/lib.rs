@@ -58,7 +58,7 @@ pub use json::{
     MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
 };
 pub use json_rows::{parse_json_rows, split_rows};
-pub use pose_format::{PoseFormat, matrix12};
+pub use pose_format::{BatchPoses, PoseFormat, matrix12};
 pub use requests::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, StreamOp,
 };

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use kinserve_kinematics::Transform;
+use kinserve_kinematics::{PackedLayout, Transform};
 
 /// How each pose of an FK answer is given (default `full`). `matrix`: 12
 /// numbers, the top three rows of the 4×4 matrix, row-major
@@ -44,6 +44,15 @@ impl PoseFormat {
         }
     }
 
+    /// The kernel's layout of a compact format; `None` for `full`.
+    pub fn layout(self) -> Option<PackedLayout> {
+        match self {
+            PoseFormat::Full => None,
+            PoseFormat::Matrix => Some(PackedLayout::Matrix12),
+            PoseFormat::Position => Some(PackedLayout::Position),
+        }
+    }
+
     /// Appends the numbers of `t` in this compact format to `out` (nothing for `full`).
     pub fn extend(self, t: &Transform, out: &mut Vec<f64>) {
         match self {
@@ -61,6 +70,55 @@ impl PoseFormat {
             self.extend(t, &mut out);
         }
         out
+    }
+}
+
+/// The tool poses of an FK batch in the answer's format: transforms for
+/// `full` (its answer computes quaternion and roll-pitch-yaw from them), the
+/// numbers of `matrix` or `position` back to back for the compact formats,
+/// as the batch kernel wrote them (see [`crate::JointBatch::fk_as`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum BatchPoses {
+    /// `full`: one transform per pose.
+    Full(Vec<Transform>),
+    /// `matrix`: 12 numbers per pose (see [`matrix12`]).
+    Matrix(Vec<f64>),
+    /// `position`: 3 numbers per pose.
+    Position(Vec<f64>),
+}
+
+impl BatchPoses {
+    /// The format the poses are in.
+    pub fn format(&self) -> PoseFormat {
+        match self {
+            BatchPoses::Full(_) => PoseFormat::Full,
+            BatchPoses::Matrix(_) => PoseFormat::Matrix,
+            BatchPoses::Position(_) => PoseFormat::Position,
+        }
+    }
+
+    /// Number of poses.
+    pub fn len(&self) -> usize {
+        match self {
+            BatchPoses::Full(t) => t.len(),
+            BatchPoses::Matrix(v) => v.len() / 12,
+            BatchPoses::Position(v) => v.len() / 3,
+        }
+    }
+
+    /// Whether there is no pose.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Transforms as poses in `format`: the compact numbers packed from
+    /// them ([`PoseFormat::pack`]), `full` kept as they are.
+    pub fn from_transforms(format: PoseFormat, poses: Vec<Transform>) -> BatchPoses {
+        match format {
+            PoseFormat::Full => BatchPoses::Full(poses),
+            PoseFormat::Matrix => BatchPoses::Matrix(format.pack(poses.iter())),
+            PoseFormat::Position => BatchPoses::Position(format.pack(poses.iter())),
+        }
     }
 }
 

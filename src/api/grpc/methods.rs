@@ -16,7 +16,7 @@ use crate::model::{
     RobotSpec, UrdfImport,
 };
 use crate::registry::{Condition, Entry, Origin, PutMode};
-use crate::service::FkAnswer;
+use crate::service::{FkAnswer, FkBatchCompute};
 use crate::telemetry::{Protocol, StreamGuard};
 use kinserve_api::{ConfigurationBatch, PbConfigOp, packed_to_pb, pose_to_pb};
 use std::future::Future;
@@ -263,9 +263,9 @@ impl KinematicsService for GrpcService {
         req.check_joint_count(entry.robot.dof())
             .map_err(Error::from)?;
         let spec = FkBatchSpec::try_from(req).map_err(Error::from)?;
-        let (poses, spec) = self
+        let (poses, _) = self
             .service
-            .fk_batch_on_pool(client, entry.clone(), spec)
+            .fk_batch_on_pool(client, entry.clone(), spec, FkBatchCompute::IN_FORMAT)
             .await?;
         entry.count_poses(Protocol::Grpc, poses.len() as u64);
         let _encode = crate::trace_span!("encode").entered();
@@ -273,8 +273,7 @@ impl KinematicsService for GrpcService {
         Ok(Response::new(kinserve_api::fk_batch_to_pb(
             entry.robot.name(),
             entry.robot.length_unit(),
-            spec.pose_format,
-            &poses,
+            poses,
         )))
     }
 

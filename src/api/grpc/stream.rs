@@ -15,7 +15,7 @@ use tonic::{Status, Streaming};
 use super::{GrpcService, oversize, pb, status, streams};
 use crate::compute::ClientId;
 use crate::error::Error;
-use crate::model::{AngleUnit, StreamOp};
+use crate::model::{AngleUnit, BatchPoses, StreamOp};
 use crate::service::StreamAnswer;
 use crate::telemetry::Protocol;
 use kinserve_api::{ConfigurationBatch, packed_to_pb, pose_to_pb};
@@ -91,7 +91,8 @@ fn stream_response(
     match answer {
         StreamAnswer::FkBatch { poses, pose_format } => {
             let _encode = crate::trace_span!("encode").entered();
-            let (poses, packed_poses) = kinserve_api::fk_batch_poses_to_pb(pose_format, &poses);
+            let (poses, packed_poses) =
+                kinserve_api::fk_batch_poses_to_pb(BatchPoses::from_transforms(pose_format, poses));
             pb::StreamForwardKinematicsResponse {
                 length_unit: unit,
                 poses,

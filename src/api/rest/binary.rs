@@ -40,10 +40,9 @@ use super::dto::{FkBatchRequest, JacobianBatchRequest};
 use super::extract::{content_type, is_json, parse_object, parse_object_rows, read_bytes, refusal};
 use super::problem::Problem;
 use crate::error::Error;
-use crate::kinematics::Transform;
 use crate::model::{
-    AngleUnit, Configurations, FkBatchSpec, FkOptions, IkAnswer, IkBatchSpec, JacobianAnswer,
-    JacobianBatchSpec, PoseFormat, ReferenceFrame, Robot,
+    AngleUnit, BatchPoses, Configurations, FkBatchSpec, FkOptions, IkAnswer, IkBatchSpec,
+    JacobianAnswer, JacobianBatchSpec, PoseFormat, ReferenceFrame, Robot,
 };
 use crate::service::Service;
 use kinserve_api::{ConfigurationBatch, pb};
@@ -488,22 +487,21 @@ fn binary_answer(media_type: &'static str, body: Vec<u8>) -> Response {
 }
 
 /// The binary answer (`media` protobuf or packed) of an FK batch.
-pub fn fk_answer(media: Media, robot: &Robot, format: PoseFormat, poses: &[Transform]) -> Response {
+pub fn fk_answer(media: Media, robot: &Robot, poses: BatchPoses) -> Response {
     let _encode = crate::trace_span!("encode").entered();
     if media == Media::Packed {
-        let packed = kinserve_api::packed_format(format);
-        let mut resp = binary_answer(PACKED, kinserve_api::poses_to_le(format, poses.iter()));
-        let h = resp.headers_mut();
-        let name = match packed {
+        let name = match poses.format() {
             PoseFormat::Position => "position",
             _ => "matrix",
         };
+        let mut resp = binary_answer(PACKED, kinserve_api::batch_poses_to_le(&poses));
+        let h = resp.headers_mut();
         h.insert(POSE_FORMAT_HEADER, HeaderValue::from_static(name));
         let unit = robot.length_unit().as_str();
         h.insert(LENGTH_UNIT_HEADER, HeaderValue::from_static(unit));
         return resp;
     }
-    let msg = kinserve_api::fk_batch_to_pb(robot.name(), robot.length_unit(), format, poses);
+    let msg = kinserve_api::fk_batch_to_pb(robot.name(), robot.length_unit(), poses);
     binary_answer(PROTOBUF, msg.encode_to_vec())
 }
 

@@ -17,7 +17,7 @@ use crate::api::pose::FkOutput;
 use crate::error::Error;
 use crate::model::{FkSpec, RobotSpec};
 use crate::registry::{Condition, Entry, Origin, PutMode};
-use crate::service::FkAnswer;
+use crate::service::{FkAnswer, FkBatchCompute};
 use crate::telemetry::Protocol;
 use axum::extract::Query;
 use axum::extract::rejection::QueryRejection;
@@ -371,16 +371,27 @@ pub async fn fk_batch(
 ) -> ApiResult<Response> {
     let entry = state.service.robot(&name)?;
     let answer = body.answer;
-    let spec = body.spec(&state.service, &entry.robot)?;
+    let mut spec = body.spec(&state.service, &entry.robot)?;
+    let robot = &entry.robot;
+    if answer != Media::Json {
+        if answer == Media::Packed {
+            // `full` has no packed form: its packed answer is `matrix`.
+            spec.pose_format = kinserve_api::packed_format(spec.pose_format);
+        }
+        let service = &state.service;
+        let compute = FkBatchCompute::IN_FORMAT;
+        let (poses, _) = service
+            .fk_batch_on_pool(client, entry.clone(), spec, compute)
+            .await?;
+        entry.count_poses(Protocol::Rest, poses.len() as u64);
+        return Ok(binary::fk_answer(answer, robot, poses));
+    }
+    let compute = FkBatchCompute::TRANSFORMS;
     let (poses, spec) = state
         .service
-        .fk_batch_on_pool(client, entry.clone(), spec)
+        .fk_batch_on_pool(client, entry.clone(), spec, compute)
         .await?;
-    let robot = &entry.robot;
     entry.count_poses(Protocol::Rest, poses.len() as u64);
-    if answer != Media::Json {
-        return Ok(binary::fk_answer(answer, robot, spec.pose_format, &poses));
-    }
     // Large answers are written a frame at a time as the connection takes them.
     Ok(super::streamed::batch_answer(
         robot.name(),

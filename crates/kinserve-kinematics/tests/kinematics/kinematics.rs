@@ -2,7 +2,7 @@
 //! vectorised sine/cosine against `std`.
 
 use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
-use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, Transform};
+use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, PackedLayout, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
 /// Deterministic pseudo-random numbers: `unit()` in [0, 1), `range(lo, hi)`.
@@ -386,5 +386,62 @@ fn transform_inverse_and_conversions_agree() {
         assert!(tq.max_abs_diff(&t) < 1e-12);
         let id = t * t.inverse();
         assert!(id.max_abs_diff(&Transform::IDENTITY) < 1e-12);
+    }
+}
+
+/// The packed batch writes, bit for bit, the numbers of the transforms the
+/// batch gives on the same kernel (the transforms are checked against the
+/// plain product above): whole blocks, the tail, blocks redone by the exact
+/// path (one huge angle), a chain without joints, and a partial trailing
+/// pose in `out` left alone.
+#[test]
+fn packed_batches_hold_the_batch_poses_numbers_on_every_kernel() {
+    let mut rng = Rng(41);
+    for case in 0..60 {
+        let convention = [Convention::Standard, Convention::Modified][case % 2];
+        let chain = random_aligned_chain(&mut rng, convention, case % 9);
+        let dof = chain.dof();
+        let count = [0, 1, 7, 8, 9, 16, 17, 37][case % 8];
+        let mut qs: Vec<f64> = (0..count * dof).map(|_| rng.range(-6.0, 6.0)).collect();
+        if case % 3 == 0 && !qs.is_empty() {
+            qs[0] = 1e7; // beyond the polynomial's range: the block is redone
+        }
+        let rows = qs.len().checked_div(dof).unwrap_or(count);
+        for kernel in supported_kernels() {
+            let mut poses = vec![Transform::IDENTITY; rows];
+            chain.forward_batch_with(kernel, &qs, 1.0, &mut poses);
+            for layout in [PackedLayout::Matrix12, PackedLayout::Position] {
+                let stride = layout.stride();
+                // One partial pose more than the configurations fill: untouched.
+                let mut packed = vec![f64::NAN; rows * stride + stride - 1];
+                chain.forward_batch_packed_with(kernel, &qs, 1.0, layout, &mut packed);
+                let expected: Vec<f64> = poses
+                    .iter()
+                    .flat_map(|t| match layout {
+                        PackedLayout::Matrix12 => t.matrix()[..3].concat(),
+                        PackedLayout::Position => t.translation.to_vec(),
+                    })
+                    .collect();
+                let (whole, partial) = packed.split_at(rows * stride);
+                let same = whole
+                    .iter()
+                    .zip(&expected)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "case {case} {kernel:?} {layout:?}");
+                assert!(partial.iter().all(|x| x.is_nan()), "case {case} {kernel:?}");
+            }
+        }
+        // Into a new vector (best kernel): asked for 3 poses more than the
+        // configurations hold, it holds as many poses as there are (a chain
+        // without joints: as many as asked), the same numbers.
+        for layout in [PackedLayout::Matrix12, PackedLayout::Position] {
+            let stride = layout.stride();
+            let fresh = chain.forward_batch_packed_vec(&qs, rows + 3, 1.0, layout);
+            let poses = if dof == 0 { rows + 3 } else { rows };
+            let mut packed = vec![0.0; poses * stride];
+            chain.forward_batch_packed(&qs, 1.0, layout, &mut packed);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&fresh), bits(&packed), "case {case} {layout:?}");
+        }
     }
 }
