@@ -56,6 +56,29 @@ async def test_stream_replies_in_order_with_fk_jacobian_and_ik(server: Server, t
             assert bad.error.code == "INVALID_ARGUMENT"
 
 
+async def test_stream_many_configurations_in_one_message(server: Server, transport: str) -> None:
+    """send_many: one reply holding every pose, bit for bit the batch's, in
+    each format (over gRPC the configurations go packed); a bad value
+    refuses that message only, naming it."""
+    qs = np.random.default_rng(3).uniform(-1, 1, size=(37, 6))
+    async with kc.AsyncClient(server.address(transport), transport=transport) as c:  # type: ignore[arg-type]
+        async with c.stream("puma560") as s:
+            for fmt in ["full", "matrix", "position"]:
+                want = await c.fk_batch("puma560", qs, pose_format=fmt)  # type: ignore[arg-type]
+                rid = await s.send_many(qs, pose_format=fmt)
+                reply = (await s.recv()).unwrap()
+                assert reply.id == rid and reply.poses is not None and reply.fk is None
+                assert reply.poses.shape == want.shape and np.array_equal(reply.poses, want), fmt
+            bad = qs[:3].copy()
+            bad[2, 1] = 3.0
+            await s.send_many(bad)
+            refused = await s.recv()
+            assert refused.error is not None and list(refused.error.fields) == ["configurations[2][1]"]
+            await s.send_many(np.zeros((0, 6)))
+            empty = (await s.recv()).unwrap()
+            assert empty.poses is not None and empty.poses.shape == (0, 4, 4)
+
+
 async def test_stream_compact_format(server: Server, transport: str) -> None:
     async with kc.AsyncClient(server.address(transport), transport=transport) as c:  # type: ignore[arg-type]
         full = (await c.fk("puma560", Q)).transform

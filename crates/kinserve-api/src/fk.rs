@@ -94,18 +94,40 @@ fn count(rows: &[pb::JointConfiguration], packed: Option<&pb::PackedConfiguratio
 
 fn joint_count_is(packed: Option<&pb::PackedConfigurations>, dof: usize) -> Result<()> {
     match packed {
-        Some(p) if p.joint_count as usize != dof && !p.values.is_empty() => {
-            Err(ModelError::invalid_field(
-                "packed_configurations.joint_count",
-                format!(
-                    "{} values per configuration, but the robot has {dof} joints: set joint_count \
-                     to {dof} and pack {dof} values per configuration",
-                    p.joint_count
-                ),
-            ))
+        Some(p) if !p.values.is_empty() => {
+            check_joint_count("packed_configurations.joint_count", p.joint_count, dof)
         }
         _ => Ok(()),
     }
+}
+
+/// A packed batch's declared values per configuration against the robot's
+/// joint count: a batch of the wrong width whose length happens to be a
+/// multiple of the robot's (42 values: 6 of 7 joints, or 7 of 6) is refused
+/// instead of read as other configurations. Invalid, naming `field` (gRPC's
+/// `packed_configurations.joint_count`, REST's `joint_count` query
+/// parameter), with the same text on both.
+///
+/// ```
+/// let e = kinserve_api::check_joint_count("joint_count", 3, 2).unwrap_err();
+/// assert_eq!(
+///     e.to_string(),
+///     "invalid input: joint_count: 3 values per configuration, but the robot has 2 joints: \
+///      set joint_count to 2 and pack 2 values per configuration"
+/// );
+/// assert!(kinserve_api::check_joint_count("joint_count", 2, 2).is_ok());
+/// ```
+pub fn check_joint_count(field: &str, declared: u32, dof: usize) -> Result<()> {
+    if declared as usize == dof {
+        return Ok(());
+    }
+    Err(ModelError::invalid_field(
+        field,
+        format!(
+            "{declared} values per configuration, but the robot has {dof} joints: set \
+             joint_count to {dof} and pack {dof} values per configuration"
+        ),
+    ))
 }
 
 /// The configurations of a batch message in one buffer: the repeated

@@ -55,8 +55,8 @@ pub use batch::{
 };
 pub use duration::{MAX_DURATION, MAX_IK_TIME_LIMIT, parse_duration, parse_ik_time_limit};
 pub use fk::{
-    ConfigurationBatch, FkOptionsExt, batch_configurations, configurations, options_from_pb,
-    pose_format_from_pb,
+    ConfigurationBatch, FkOptionsExt, batch_configurations, check_joint_count, configurations,
+    options_from_pb, pose_format_from_pb,
 };
 pub use ik::angle_unit_to_pb;
 pub use ik::{ik_batch_spec_from_pb, ik_path_spec_from_pb, ik_path_to_pb, ik_spec_from_pb};

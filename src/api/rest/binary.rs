@@ -332,20 +332,13 @@ impl PackedQuery for PackedJacobianQuery {
     }
 }
 
-/// A packed body's declared `joint_count` against the robot's: a body of the
-/// wrong width whose length happens to be a multiple of the robot's joint
-/// count (42 values: 6 of 7 joints, or 7 of 6) is refused instead of read as
-/// other configurations. Invalid, naming `joint_count`.
+/// A packed body's declared `joint_count` against the robot's
+/// ([`kinserve_api::check_joint_count`], the gRPC field's check), naming
+/// the query parameter.
 fn check_joint_count(declared: Option<u32>, dof: usize) -> Result<(), Error> {
     match declared {
-        Some(n) if n as usize != dof => Err(Error::invalid_field(
-            "joint_count",
-            format!(
-                "{n} values per configuration, but the robot has {dof} joints: pack {dof} values \
-                 per configuration"
-            ),
-        )),
-        _ => Ok(()),
+        Some(n) => Ok(kinserve_api::check_joint_count("joint_count", n, dof)?),
+        None => Ok(()),
     }
 }
 

@@ -630,7 +630,14 @@ def stream_request(robot: str, request: Mapping[str, Any]) -> Any:
         )
         out.ik.CopyFrom(msg)
         return out
-    out.joints.extend(request["joints"])
+    rows = request.get("configurations")
+    if rows is not None:
+        q = np.asarray(rows, dtype=np.float64)
+        out.packed_configurations.SetInParent()  # present even when empty
+        out.packed_configurations.joint_count = q.shape[1] if q.ndim == 2 else 0
+        out.packed_configurations.values.extend(q.ravel().tolist())
+    else:
+        out.joints.extend(request["joints"])
     out.options.CopyFrom(
         _options(
             request.get("angle_unit", "rad"),
@@ -645,6 +652,14 @@ def stream_request(robot: str, request: Mapping[str, Any]) -> Any:
     if request.get("link_transforms"):
         out.include_link_transforms = True
     return out
+
+
+def _many_poses(m: Any, pose_format: str) -> Array:
+    """A many-configuration stream reply's poses: ``poses`` for ``full``, else ``packed_poses``."""
+    if pose_format == "full":
+        return _f([p.matrix for p in m.poses]).reshape(-1, 4, 4)
+    shape = (-1, 3, 4) if pose_format == "matrix" else (-1, 3)
+    return _f(m.packed_poses.values).reshape(shape)
 
 
 def stream_reply(m: Any, requests: Mapping[int, Mapping[str, Any]]) -> Any:
@@ -666,6 +681,8 @@ def stream_reply(m: Any, requests: Mapping[int, Mapping[str, Any]]) -> Any:
         every = (request.get("ik") or {}).get("solutions") == "all"
         return StreamReply(rid, ik=ik_result(m.ik, all_solutions=every, length_unit=_unit(m.length_unit)))
     fmt = request.get("pose_format", "full")
+    if "configurations" in request:
+        return StreamReply(rid, poses=_many_poses(m, fmt))
     fk = fk_answer("", m.length_unit, m, fmt, bool(request.get("frames")))
     jac = jacobian_of("", m.length_unit, m.jacobian) if m.HasField("jacobian") else None
     lt = None

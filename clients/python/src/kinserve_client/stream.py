@@ -19,16 +19,17 @@ from urllib.parse import quote
 import numpy as np
 
 from . import errors
-from ._calls import joint_vector, target_json
+from ._calls import configurations, joint_vector, target_json
 from ._rest import error_from_problem, fk_result, jacobian_item, parse_ik_item, parse_path, path_body
-from .types import JSON, ArrayLike, FkResult, IkPath, IkResult, Jacobian, PoseFormat, Transport
+from .types import JSON, Array, ArrayLike, FkResult, IkPath, IkResult, Jacobian, PoseFormat, Transport
 
 
 @dataclass(frozen=True)
 class StreamReply:
     """One reply of a stream: ``fk`` (and ``jacobian``, ``link_transforms``
-    when asked for) for an FK request, ``ik`` for an IK request, ``ik_path``
-    for a Cartesian path, or ``error``."""
+    when asked for) for an FK request, ``poses`` for many configurations
+    (:meth:`Stream.send_many`), ``ik`` for an IK request, ``ik_path`` for a
+    Cartesian path, or ``error``."""
 
     id: int
     fk: FkResult | None = None
@@ -37,6 +38,9 @@ class StreamReply:
     link_transforms: Any = None
     error: errors.KinserveError | None = None
     ik_path: IkPath | None = None
+    poses: Array | None = None
+    """:meth:`Stream.send_many`'s poses, shaped as :meth:`Client.fk_batch`
+    returns them: (N, 4, 4) for ``full``, (N, 3, 4) ``matrix``, (N, 3) ``position``."""
 
     def unwrap(self) -> StreamReply:
         """The reply itself, or its error raised."""
@@ -116,6 +120,20 @@ class Stream:
             request["frames"] = True
         if link_transforms:
             request["link_transforms"] = True
+        return await self._submit(request)
+
+    async def send_many(self, configurations_: ArrayLike, **options: JSON) -> int:
+        """Queues FK of many configurations in one message (an (N, dof) array;
+        at most the server's batch limit): one reply whose ``poses`` hold them
+        all, in order, as :meth:`Client.fk_batch` answers them. ``options`` as
+        for :meth:`send`. Over gRPC the configurations go packed
+        (``packed_configurations``); one bad value refuses the message, naming
+        ``configurations[i][j]``, and the stream goes on. Returns its id.
+
+        Cheaper per pose than one :meth:`send` each when a planner has many
+        configurations at once (a whole path, a sampled region)."""
+        rows = configurations(configurations_)
+        request: dict[str, JSON] = {**self._defaults, **options, "configurations": rows.tolist()}
         return await self._submit(request)
 
     async def send_ik(self, target: ArrayLike | Mapping[str, Any], **ik: JSON) -> int:
@@ -202,12 +220,23 @@ def _reply_from_json(m: Mapping[str, Any], requests: Mapping[int, Mapping[str, J
     if "ik" in request:
         return StreamReply(rid, ik=parse_ik_item(m))
     fmt: PoseFormat = request.get("pose_format", "full")
+    if "configurations" in request:
+        return StreamReply(rid, poses=_many_from_json(m, fmt))
     fk = fk_result(m, fmt)
     jac = jacobian_item(m) if "jacobian" in m else None
     lt = None
     if "link_transforms" in m:
         lt = np.asarray([[x["matrix"], x["inverse"]] for x in m["link_transforms"]], dtype=np.float64)
     return StreamReply(rid, fk=fk, jacobian=jac, link_transforms=lt)
+
+
+def _many_from_json(m: Mapping[str, Any], fmt: PoseFormat) -> Array:
+    """A many-configuration reply's poses (``poses``, ``matrices`` or ``positions``)."""
+    if fmt == "full":
+        return np.asarray([p["matrix"] for p in m["poses"]], dtype=np.float64).reshape(-1, 4, 4)
+    if fmt == "matrix":
+        return np.asarray(m["matrices"], dtype=np.float64).reshape(-1, 3, 4)
+    return np.asarray(m["positions"], dtype=np.float64).reshape(-1, 3)
 
 
 class _WebSocketWire:
