@@ -12,7 +12,10 @@
 //! * [`check_fk_request`]: the REST FK body, the batch body and the WebSocket
 //!   message, parsed as the server parses them and evaluated against a few
 //!   built-in robots, either fail with a client error (4xx) or give finite,
-//!   rigid poses that serialise to JSON numbers (never `null`).
+//!   rigid poses that serialise to JSON numbers (never `null`); a batch
+//!   computed in each pose format the way binary and gRPC answers are (the
+//!   kernel writing the compact numbers) holds the transforms' numbers bit
+//!   for bit.
 //! * [`check_ik_request`] (in `fuzz_ik`): the REST IK body, the IK batch body
 //!   and the WebSocket IK message, validated and solved (under a short time
 //!   cap) for a few built-in robots, either fail with a client error or give
@@ -30,8 +33,8 @@ use kinserve::registry::{MemoryStore, Registry};
 use kinserve::service::{Service, ServiceLimits, WriteAccess};
 use kinserve_kinematics::{JointKind, Transform};
 use kinserve_model::{
-    AngleUnit, FkBatchSpec, FkOptions, FkSpec, MAX_MAGNITUDE, MAX_REVOLUTE_RAD, ModelError,
-    ModelLimits, Robot, StreamOp, parse_json,
+    AngleUnit, BatchPoses, FkBatchSpec, FkOptions, FkSpec, MAX_MAGNITUDE, MAX_REVOLUTE_RAD,
+    ModelError, ModelLimits, PoseFormat, Robot, StreamOp, parse_json,
 };
 
 pub use crate::fuzz_ik::check_ik_request;
@@ -275,6 +278,7 @@ fn evaluate_batch(service: &Service, robot: &Robot, spec: &FkBatchSpec) {
         }
     };
     assert_eq!(poses.len(), configs.len(), "one pose per configuration");
+    check_in_formats(service, robot, spec, &poses);
     let dof = robot.dof();
     for (q, t) in configs.values.chunks_exact(dof.max(1)).zip(&poses) {
         check_pose(t, "fk_batch", q);
@@ -285,6 +289,43 @@ fn evaluate_batch(service: &Service, robot: &Robot, spec: &FkBatchSpec) {
                 .unwrap_or_else(|e| panic!("batch accepted {q:?} but fk refused it: {e}"));
             check_agree(t, &one, reach_with(robot, q), "batch vs single", q);
         }
+    }
+}
+
+/// The batch in every pose format as the binary and gRPC answers compute it
+/// (the kernel writing the compact numbers itself) holds, bit for bit, the
+/// numbers of the transforms `poses` packed afterwards.
+fn check_in_formats(service: &Service, robot: &Robot, spec: &FkBatchSpec, poses: &[Transform]) {
+    for format in [PoseFormat::Full, PoseFormat::Matrix, PoseFormat::Position] {
+        let spec = FkBatchSpec {
+            pose_format: format,
+            ..spec.clone()
+        };
+        let got = service
+            .fk_batch_as_format(robot, &spec)
+            .unwrap_or_else(|e| panic!("fk_batch accepted the batch, {format:?} refused it: {e}"));
+        let want = BatchPoses::from_transforms(format, poses.to_vec());
+        let bits = |p: &BatchPoses| -> Vec<u64> {
+            match p {
+                BatchPoses::Full(t) => t
+                    .iter()
+                    .flat_map(|t| t.matrix().concat())
+                    .map(f64::to_bits)
+                    .collect(),
+                BatchPoses::Matrix(v) | BatchPoses::Position(v) => {
+                    v.iter().map(|x| x.to_bits()).collect()
+                }
+            }
+        };
+        assert_eq!(
+            got.format(),
+            format,
+            "fk_batch_as_format answered another format"
+        );
+        assert!(
+            bits(&got) == bits(&want),
+            "{format:?} batch differs from the packed transforms"
+        );
     }
 }
 
