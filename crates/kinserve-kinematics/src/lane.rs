@@ -402,24 +402,14 @@ mod zmm {
         }
 
         /// The eight poses as matrix rows, by the same transposes as
-        /// [`Lane8::store_poses`]: each pose's rows 0 and 1 (8 numbers) as an
-        /// 8 × 8 block, row 2 as an 8 × 4 one.
+        /// [`Lane8::store_poses`], rows 0 and 1 first, then row 2.
         #[inline(always)]
         fn store_matrix12(m: &[[Self; 4]; 3], out: &mut [MaybeUninit<f64>; 96]) {
             let [[r00, r01, r02, x], [r10, r11, r12, y], [r20, r21, r22, z]] = *m;
-            let rows = [r00, r01, r02, x, r10, r11, r12, y].map(|v| v.0);
-            let base: *mut f64 = out.as_mut_ptr().cast();
+            let head = [r00, r01, r02, x, r10, r11, r12, y].map(|v| v.0);
             // SAFETY: a `Zmm` exists only on a CPU with AVX-512F (and AVX);
-            // `out` is 96 writable doubles and pose `k`'s are
-            // `base[12k..12k + 12]`: every store below is inside them.
-            unsafe {
-                let t = transpose8(rows);
-                let tail = transpose8x4([r20.0, r21.0, r22.0, z.0]);
-                for k in 0..8 {
-                    _mm512_storeu_pd(base.add(12 * k), t[k]);
-                    _mm256_storeu_pd(base.add(12 * k + 8), tail[k]);
-                }
-            }
+            // `out` is 96 writable doubles.
+            unsafe { store_twelve(head, [r20.0, r21.0, r22.0, z.0], out.as_mut_ptr().cast()) }
         }
 
         /// The eight poses by an in-register transpose: each pose's first
@@ -432,19 +422,32 @@ mod zmm {
         fn store_poses(m: &[[Self; 4]; 3], out: &mut [Transform; 8]) {
             const { assert!(size_of::<[Transform; 8]>() == 96 * size_of::<f64>()) };
             let [[r00, r01, r02, x], [r10, r11, r12, y], [r20, r21, r22, z]] = *m;
-            let rows = [r00, r01, r02, r10, r11, r12, r20, r21].map(|v| v.0);
-            let base: *mut f64 = out.as_mut_ptr().cast();
+            let head = [r00, r01, r02, r10, r11, r12, r20, r21].map(|v| v.0);
             // SAFETY: a `Zmm` exists only on a CPU with AVX-512F (and AVX);
             // `Transform` is `repr(C)`, twelve doubles without padding (size
-            // checked above), so `out` is 96 writable doubles and pose `k`'s
-            // are `base[12k..12k + 12]`: every store below is inside them.
-            unsafe {
-                let t = transpose8(rows);
-                let tail = transpose8x4([r22.0, x.0, y.0, z.0]);
-                for k in 0..8 {
-                    _mm512_storeu_pd(base.add(12 * k), t[k]);
-                    _mm256_storeu_pd(base.add(12 * k + 8), tail[k]);
-                }
+            // checked above), so `out` is 96 writable doubles.
+            unsafe { store_twelve(head, [r22.0, x.0, y.0, z.0], out.as_mut_ptr().cast()) }
+        }
+    }
+
+    /// Eight poses of twelve numbers each from their vectors: lane `k` of
+    /// `head[j]` is number `j` of pose `k`, of `tail[j]` number `8 + j`;
+    /// pose `k` goes to `base[12k..12k + 12]` (an 8 × 8 and an 8 × 4
+    /// transpose, then one 8-double and one 4-double store per pose).
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F; `base` must be valid for writes of
+    /// 96 doubles.
+    #[inline(always)]
+    unsafe fn store_twelve(head: [__m512d; 8], tail: [__m512d; 4], base: *mut f64) {
+        // SAFETY: by this function's contract every store is inside
+        // `base[0..96]` and the intrinsics' features are there.
+        unsafe {
+            let t = transpose8(head);
+            let tail = transpose8x4(tail);
+            for k in 0..8 {
+                _mm512_storeu_pd(base.add(12 * k), t[k]);
+                _mm256_storeu_pd(base.add(12 * k + 8), tail[k]);
             }
         }
     }
