@@ -32,7 +32,7 @@ use kinserve_model::{
 };
 
 use crate::pb;
-use crate::pose::pose_to_pb;
+use crate::pose::{packed_poses, pose_to_pb};
 
 /// Bytes of one packed number.
 pub const F64_BYTES: usize = 8;
@@ -165,16 +165,11 @@ pub fn fk_batch_to_pb(
 /// as it is (moved, not copied). [`fk_batch_to_pb`] and the gRPC stream's
 /// many-configuration reply both write them, so their numbers are the same.
 pub fn fk_batch_poses_to_pb(poses: BatchPoses) -> (Vec<pb::Pose>, Option<pb::PackedPoses>) {
-    let (format, values) = match poses {
-        BatchPoses::Full(t) => return (t.iter().map(pose_to_pb).collect(), None),
-        BatchPoses::Matrix(v) => (pb::PoseFormat::Matrix, v),
-        BatchPoses::Position(v) => (pb::PoseFormat::Position, v),
-    };
-    let packed = pb::PackedPoses {
-        format: format as i32,
-        values,
-    };
-    (Vec::new(), Some(packed))
+    let format = poses.format();
+    match poses {
+        BatchPoses::Full(t) => (t.iter().map(pose_to_pb).collect(), None),
+        BatchPoses::Matrix(v) | BatchPoses::Position(v) => (Vec::new(), packed_poses(format, v)),
+    }
 }
 
 /// Numbers per result of a packed Jacobian answer for `dof` joints.

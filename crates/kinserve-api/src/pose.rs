@@ -20,6 +20,12 @@ pub fn packed_to_pb<'a>(
     format: PoseFormat,
     poses: impl ExactSizeIterator<Item = &'a Transform>,
 ) -> Option<pb::PackedPoses> {
+    packed_poses(format, format.pack(poses))
+}
+
+/// `values` (numbers of poses in `format`, back to back) as the packed
+/// message; `None` for `full`.
+pub(crate) fn packed_poses(format: PoseFormat, values: Vec<f64>) -> Option<pb::PackedPoses> {
     let format_pb = match format {
         PoseFormat::Full => return None,
         PoseFormat::Matrix => pb::PoseFormat::Matrix,
@@ -27,7 +33,7 @@ pub fn packed_to_pb<'a>(
     };
     Some(pb::PackedPoses {
         format: format_pb as i32,
-        values: format.pack(poses),
+        values,
     })
 }
 

@@ -40,15 +40,6 @@ impl PackedLayout {
     }
 }
 
-/// The top three rows of `t`'s homogeneous matrix, row-major.
-pub(crate) fn matrix12(t: &Transform) -> [f64; 12] {
-    let [r0, r1, r2] = &t.rotation;
-    let p = &t.translation;
-    [
-        r0[0], r0[1], r0[2], p[0], r1[0], r1[1], r1[2], p[1], r2[0], r2[1], r2[2], p[2],
-    ]
-}
-
 /// A destination of batch poses: one at a time (the tail of a batch, poses
 /// redone by the exact path, a chain without joints) or eight at once from
 /// the kernel's registers.
@@ -97,7 +88,7 @@ impl BatchOut for Matrix12Out<'_> {
     }
 
     fn put(&mut self, i: usize, t: &Transform) {
-        put_all(&mut self.0[12 * i..12 * i + 12], &matrix12(t));
+        put_all(&mut self.0[12 * i..12 * i + 12], &t.matrix12());
     }
 
     #[inline(always)]

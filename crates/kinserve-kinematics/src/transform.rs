@@ -59,6 +59,22 @@ impl Transform {
         ]
     }
 
+    /// The top three rows of [`Transform::matrix`], row-major:
+    /// `[r11, r12, r13, x, r21, r22, r23, y, r31, r32, r33, z]` (the
+    /// `matrix` pose format's 12 numbers).
+    ///
+    /// ```
+    /// let t = kinserve_kinematics::Transform::translation(1.0, 2.0, 3.0);
+    /// assert_eq!(t.matrix12(), [1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0, 1.0, 3.0]);
+    /// ```
+    pub fn matrix12(&self) -> [f64; 12] {
+        let [r0, r1, r2] = &self.rotation;
+        let p = &self.translation;
+        [
+            r0[0], r0[1], r0[2], p[0], r1[0], r1[1], r1[2], p[1], r2[0], r2[1], r2[2], p[2],
+        ]
+    }
+
     /// The translation part (same unit as the transform).
     pub fn position(&self) -> [f64; 3] {
         self.translation

@@ -37,11 +37,7 @@ impl PoseFormat {
     /// assert_eq!(PoseFormat::Full.stride(), None);
     /// ```
     pub fn stride(self) -> Option<usize> {
-        match self {
-            PoseFormat::Full => None,
-            PoseFormat::Matrix => Some(12),
-            PoseFormat::Position => Some(3),
-        }
+        self.layout().map(PackedLayout::stride)
     }
 
     /// The kernel's layout of a compact format; `None` for `full`.
@@ -101,8 +97,9 @@ impl BatchPoses {
     pub fn len(&self) -> usize {
         match self {
             BatchPoses::Full(t) => t.len(),
-            BatchPoses::Matrix(v) => v.len() / 12,
-            BatchPoses::Position(v) => v.len() / 3,
+            BatchPoses::Matrix(v) | BatchPoses::Position(v) => {
+                v.len() / self.format().stride().unwrap_or(1)
+            }
         }
     }
 
@@ -125,10 +122,5 @@ impl BatchPoses {
 /// The top three rows of the homogeneous matrix of `t`, row-major: the same
 /// numbers, bit for bit, as the first 12 of [`Transform::matrix`].
 pub fn matrix12(t: &Transform) -> [f64; 12] {
-    let r = &t.rotation;
-    let p = &t.translation;
-    [
-        r[0][0], r[0][1], r[0][2], p[0], r[1][0], r[1][1], r[1][2], p[1], r[2][0], r[2][1],
-        r[2][2], p[2],
-    ]
+    t.matrix12()
 }
