@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use crate::config::BenchArgs;
+use crate::config::{BenchArgs, BenchKernel};
 use crate::kinematics::{Kernel, Transform};
 use crate::model::Robot;
 
@@ -35,19 +35,50 @@ struct Report {
 /// Runs `kinserve bench` on `robot` (loaded by the CLI's one robot loader)
 /// and returns the exit code.
 pub fn run(robot: &Robot, args: &BenchArgs) -> ExitCode {
-    let report = measure(robot, args.batch);
-    if args.json {
-        match serde_json::to_string(&report) {
-            Ok(s) => println!("{s}"),
-            Err(e) => {
-                eprintln!("cannot print the result: {e}");
-                return ExitCode::FAILURE;
-            }
+    let kernels = match kernels(args.kernel) {
+        Ok(k) => k,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::FAILURE;
         }
-    } else {
-        print_table(robot, &report, args.batch);
+    };
+    for kernel in kernels {
+        let report = measure(robot, args.batch, kernel);
+        if args.json {
+            match serde_json::to_string(&report) {
+                Ok(s) => println!("{s}"),
+                Err(e) => {
+                    eprintln!("cannot print the result: {e}");
+                    return ExitCode::FAILURE;
+                }
+            }
+        } else {
+            print_table(robot, &report, args.batch);
+        }
     }
     ExitCode::SUCCESS
+}
+
+/// The kernels `--kernel` asks for, or why this CPU cannot run the one asked for.
+fn kernels(choice: BenchKernel) -> Result<Vec<Kernel>, String> {
+    let supported: Vec<Kernel> = Kernel::ALL
+        .into_iter()
+        .filter(|k| k.is_supported())
+        .collect();
+    match choice {
+        BenchKernel::Best => Ok(vec![Kernel::best()]),
+        BenchKernel::All => Ok(supported),
+        BenchKernel::One(k) if k.is_supported() => Ok(vec![k]),
+        BenchKernel::One(k) => Err(format!(
+            "this CPU cannot run the {} kernel; it runs: {}",
+            k.name(),
+            supported
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
 }
 
 /// Deterministic joint values for `count` configurations: inside each joint's
@@ -98,27 +129,29 @@ fn time_ns(per_call: usize, mut f: impl FnMut()) -> f64 {
     samples[SAMPLES / 2]
 }
 
-/// The three figures on the kernel [`Kernel::best`] picks.
-fn measure(robot: &Robot, batch: usize) -> Report {
+/// The three figures on `kernel` (supported by this CPU).
+fn measure(robot: &Robot, batch: usize, kernel: Kernel) -> Report {
     let chain = robot.chain();
     let one = configurations(robot, 1);
     let many = configurations(robot, batch);
     let mut out = vec![Transform::IDENTITY; batch];
     let single_ns = time_ns(1, || {
-        black_box(chain.forward(black_box(&one), 1.0));
+        black_box(chain.forward_with(kernel, black_box(&one), 1.0));
     });
     let frames_ns = time_ns(1, || {
-        black_box(chain.forward_frames_into(black_box(&one), 1.0, &mut |t| {
-            black_box(t);
-        }));
+        black_box(
+            chain.forward_frames_into_with(kernel, black_box(&one), 1.0, &mut |t| {
+                black_box(t);
+            }),
+        );
     });
     let batch_ns_per_pose = time_ns(batch, || {
-        chain.forward_batch(black_box(&many), 1.0, &mut out);
+        chain.forward_batch_with(kernel, black_box(&many), 1.0, &mut out);
         black_box(&out);
     });
     Report {
         robot: robot.name().to_string(),
-        simd: Kernel::best().name(),
+        simd: kernel.name(),
         single_ns,
         frames_ns,
         batch_ns_per_pose,

@@ -394,9 +394,40 @@ pub struct BenchArgs {
     /// Configurations in the batch figure.
     #[arg(long, default_value_t = 10_000, value_parser = parse_batch)]
     pub batch: usize,
-    /// Print `{"robot", "simd", "single_ns", "frames_ns", "batch_ns_per_pose"}` (ns) instead of a table.
+    /// Print `{"robot", "simd", "single_ns", "frames_ns", "batch_ns_per_pose"}` (ns) instead of a table
+    /// (with `--kernel all`, one such line per kernel).
     #[arg(long)]
     pub json: bool,
+    /// Which compiled kernel to time: `best` (the one the server uses on this
+    /// CPU), `portable`, `avx2` (AVX2 + FMA), `avx512`, or `all` this CPU supports.
+    #[arg(long, default_value = "best", value_parser = parse_bench_kernel)]
+    pub kernel: BenchKernel,
+}
+
+/// `--kernel` of `kinserve bench`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchKernel {
+    /// The kernel the server picks on this CPU.
+    Best,
+    /// One kernel (refused at run time if the CPU lacks it).
+    One(crate::kinematics::Kernel),
+    /// Every kernel this CPU supports, narrowest first.
+    All,
+}
+
+/// `--kernel` of `kinserve bench`: `best`, `all`, or a kernel's name.
+fn parse_bench_kernel(s: &str) -> Result<BenchKernel, String> {
+    use crate::kinematics::Kernel;
+    match s.trim() {
+        "best" => Ok(BenchKernel::Best),
+        "all" => Ok(BenchKernel::All),
+        "portable" => Ok(BenchKernel::One(Kernel::Portable)),
+        "avx2" | "avx2+fma" => Ok(BenchKernel::One(Kernel::Avx2Fma)),
+        "avx512" => Ok(BenchKernel::One(Kernel::Avx512)),
+        _ => Err(format!(
+            "not a kernel: '{s}'; use best, all, portable, avx2 or avx512"
+        )),
+    }
 }
 
 /// `--batch` of `kinserve bench`: 1 to 1,000,000 configurations.

@@ -189,6 +189,56 @@ fn bench_prints_positive_finite_figures_and_the_kernel() {
         .unwrap();
     assert!(table.status.success());
     assert!(String::from_utf8_lossy(&table.stdout).contains("ns/pose"));
+    // Every kernel this CPU runs, one JSON line each, narrowest first, each
+    // named; a kernel it cannot run (or no kernel at all) is refused by name.
+    let all = kinserve()
+        .args([
+            "bench", "--robot", "ur5e", "--batch", "16", "--json", "--kernel", "all",
+        ])
+        .output()
+        .unwrap();
+    assert!(all.status.success());
+    let names: Vec<String> = String::from_utf8_lossy(&all.stdout)
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            assert!(
+                v["batch_ns_per_pose"].as_f64().is_some_and(|x| x > 0.0),
+                "{v}"
+            );
+            v["simd"].as_str().unwrap().to_string()
+        })
+        .collect();
+    let supported: Vec<String> = kinserve::kinematics::Kernel::ALL
+        .iter()
+        .filter(|k| k.is_supported())
+        .map(|k| k.name().to_string())
+        .collect();
+    assert_eq!(names, supported);
+    let portable = kinserve()
+        .args([
+            "bench", "--robot", "ur5e", "--batch", "16", "--json", "--kernel", "portable",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(stdout_json(&portable)["simd"], "portable");
+    for (kernel, refused) in [
+        ("sse9", "not a kernel: 'sse9'"),
+        ("avx512", "cannot run the avx512 kernel"),
+    ] {
+        if kernel == "avx512" && kinserve::kinematics::Kernel::Avx512.is_supported() {
+            continue;
+        }
+        let out = kinserve()
+            .args(["bench", "--robot", "ur5e", "--kernel", kernel])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{kernel}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains(refused),
+            "{kernel}"
+        );
+    }
     let missing = kinserve()
         .args(["bench", "--robot", "no_such_robot"])
         .output()
