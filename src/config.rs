@@ -430,6 +430,14 @@ fn parse_bench_kernel(s: &str) -> Result<BenchKernel, String> {
     }
 }
 
+/// `--grpc-stream-window`: 65535 (HTTP/2's default) to 16 MiB.
+fn parse_grpc_window(s: &str) -> Result<u32, String> {
+    match s.trim().parse::<u32>() {
+        Ok(n @ 65_535..=0x100_0000) => Ok(n),
+        _ => Err(format!("not a window from 65535 to 16777216 bytes: '{s}'")),
+    }
+}
+
 /// `--batch` of `kinserve bench`: 1 to 1,000,000 configurations.
 fn parse_batch(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
@@ -582,6 +590,16 @@ pub struct ServeConfig {
         value_parser = parse_at_most::<MAX_COUNT>
     )]
     pub max_streams_per_connection: usize,
+    /// HTTP/2 receive window of each gRPC call, in bytes (65535 to 16777216):
+    /// how much a client may send on a call before the server's next window
+    /// update. A packed 10,000-configuration batch (480 KB) fits the default
+    /// 1 MiB, so a planner across a network sends it in one round trip; with
+    /// HTTP/2's own 65535 it takes about eight. The cost: a stream whose
+    /// server side has stopped reading (its client reads no replies) holds up
+    /// to this much, so stalled streams may hold --max-streams × this (64 MiB
+    /// by default). The connection window follows (docs/configuration.md).
+    #[arg(long, env = "KINSERVE_GRPC_STREAM_WINDOW", default_value_t = crate::api::grpc::DEFAULT_STREAM_WINDOW, value_parser = parse_grpc_window)]
+    pub grpc_stream_window: u32,
     /// Most bytes of request bodies buffered at once, REST bodies and gRPC
     /// messages together (one budget): a REST body that does not fit is
     /// answered 503 (Retry-After); a gRPC call that needs more fails at once
@@ -689,6 +707,7 @@ impl std::fmt::Debug for ServeConfig {
             max_connections,
             max_streams,
             max_streams_per_connection,
+            grpc_stream_window,
             shutdown_grace,
             shutdown_timeout,
             ik_time_limit,
@@ -731,6 +750,7 @@ impl std::fmt::Debug for ServeConfig {
             .field("max_connections", max_connections)
             .field("max_streams", max_streams)
             .field("max_streams_per_connection", max_streams_per_connection)
+            .field("grpc_stream_window", grpc_stream_window)
             .field("shutdown_grace", shutdown_grace)
             .field("shutdown_timeout", shutdown_timeout)
             .field("ik_time_limit", ik_time_limit)
@@ -819,6 +839,7 @@ impl ServeConfig {
             stream_first_message_timeout: self.stream_first_message_timeout,
             access_log: self.access_log,
             trust_forwarded_for: self.trust_forwarded_for,
+            stream_window: self.grpc_stream_window,
         }
     }
 

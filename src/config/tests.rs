@@ -131,6 +131,8 @@ fn serve_refuses_out_of_range_options_by_name() {
             "at most 68719476736",
         ),
         ("--max-concurrent-batches", "1000001", "at most 1000000"),
+        ("--grpc-stream-window", "16777217", "from 65535 to 16777216"),
+        ("--grpc-stream-window", "65534", "from 65535 to 16777216"),
     ];
     for (flag, value, why) in cases {
         let err = ServeOnly::try_parse_from(["kinserve", flag, value])
@@ -143,6 +145,22 @@ fn serve_refuses_out_of_range_options_by_name() {
         );
         assert!(err.contains(why), "{err}");
     }
+}
+
+#[test]
+fn the_grpc_stream_window_takes_bytes_within_http2s_range() {
+    let parse = |v: &str| {
+        ServeOnly::try_parse_from(["kinserve", "--grpc-stream-window", v])
+            .map(|s| s.c.grpc_stream_window)
+            .ok()
+    };
+    assert_eq!(parse("65535"), Some(65_535));
+    assert_eq!(parse("16777216"), Some(16 << 20));
+    assert_eq!(parse("1048576"), Some(1 << 20));
+    assert_eq!(
+        ServeConfig::flag_defaults().grpc_stream_window,
+        crate::api::grpc::DEFAULT_STREAM_WINDOW
+    );
 }
 
 #[test]

@@ -28,7 +28,7 @@ use crate::error::Error;
 use crate::service::Service;
 
 pub use kinserve_api::pb;
-pub use server::{Lifecycle, serve};
+pub use server::{DEFAULT_STREAM_WINDOW, Lifecycle, connection_window, serve};
 
 /// What the gRPC adapter is configured with (start-up builds it from the
 /// command line; the adapter never sees the command line itself).
@@ -53,6 +53,9 @@ pub struct GrpcSettings {
     /// Whether the last `x-forwarded-for` metadata address names the client
     /// (the peer is the operator's proxy).
     pub trust_forwarded_for: bool,
+    /// HTTP/2 receive window of each call, in bytes (`--grpc-stream-window`);
+    /// the connection window follows from it ([`connection_window`]).
+    pub stream_window: u32,
 }
 
 /// The gRPC service over the shared [`Service`].

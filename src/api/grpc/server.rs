@@ -14,24 +14,44 @@ use super::{GrpcService, GrpcSettings, buffered, grpc_metrics, oversize, pb, str
 use crate::api::budget::Budgets;
 use crate::service::Service;
 
-/// HTTP/2 receive window of one stream: what a client may send ahead on a stream
-/// the server has stopped reading (a slow reader of the FK stream).
+/// HTTP/2 receive window of one stream by default (`--grpc-stream-window`):
+/// how much of a large unary request a client may send per round trip (a
+/// packed 10,000-configuration batch, 480 KB, in one instead of the eight
+/// that HTTP/2's 64 KiB default needs), and what it may send ahead on a
+/// stream the server has stopped reading (a slow reader of the FK stream):
+/// at most `--max-streams` × this, 64 MiB by default.
+pub const DEFAULT_STREAM_WINDOW: u32 = 1 << 20;
+
+/// Smallest HTTP/2 receive window of a connection (sets h2's small-frame budget to half of it).
+const MIN_CONNECTION_WINDOW: u32 = 16 << 20;
+
+/// The connection's HTTP/2 receive window for a stream window of
+/// `stream_window` bytes: at least 16 MiB, and 74 stream windows.
 ///
 /// h2 guards against floods of small DATA frames with a budget of framing
 /// overhead (up to 256 bytes per frame under 256 bytes) of *unread* frames, half
 /// the connection window; past it, it closes the whole connection with GOAWAY
-/// ENHANCE_YOUR_CALM. A client that streams one ~70-byte request at a time while
+/// ENHANCE_YOUR_CALM. A client that streams one small request at a time while
 /// reading slowly fills a stalled stream's window with small frames: with
 /// hyper's defaults (1 MiB stream and connection windows, budget 512 KiB) about
-/// 2,700 unread requests killed the connection instead of blocking the client.
-/// A 64 KiB stream window (the HTTP/2 default) and a 16 MiB connection window
-/// (budget 8 MiB) keep a stalled stream's worst case (~9,400 frames of 7 bytes,
-/// ~2.3 MiB of overhead) well inside the budget, so backpressure reaches the
-/// client instead.
-const STREAM_WINDOW: u32 = 64 << 10;
-
-/// HTTP/2 receive window of a connection (sets h2's small-frame budget to half of it).
-const CONNECTION_WINDOW: u32 = 16 << 20;
+/// 2,700 unread ~70-byte requests killed the connection instead of blocking the
+/// client. The worst case, a stream window full of the smallest gRPC frames
+/// (7 bytes: the 5-byte prefix and a 2-byte message), is 249 bytes of
+/// overhead per 7 bytes, 35.6 × the stream window; half of 74 windows holds
+/// it, so backpressure reaches the client instead; so does a connection's
+/// every stream (`--max-streams-per-connection`, 16) of FK requests of about
+/// 90 bytes (166 bytes of overhead each, 1.8 × the window per stream). (The
+/// connection window alone pins no memory: the server reads unary calls as
+/// they arrive, and a stalled stream holds at most its own window.)
+///
+/// ```
+/// # use kinserve::api::grpc::connection_window;
+/// assert_eq!(connection_window(64 << 10), 16 << 20);
+/// assert_eq!(connection_window(1 << 20), 74 << 20);
+/// ```
+pub fn connection_window(stream_window: u32) -> u32 {
+    stream_window.saturating_mul(74).max(MIN_CONNECTION_WINDOW)
+}
 
 /// Calls (unary and streaming) open at once on one HTTP/2 connection
 /// (`SETTINGS_MAX_CONCURRENT_STREAMS`); a client past it waits for one to
@@ -95,6 +115,7 @@ pub async fn serve(
     let max_message = settings.max_message_bytes;
     let request_timeout = settings.request_timeout;
     let access_log = settings.access_log;
+    let stream_window = settings.stream_window;
     let Budgets {
         permits,
         streams,
@@ -142,8 +163,8 @@ pub async fn serve(
         .layer(buffered)
         .timeout(request_timeout)
         .tcp_nodelay(true)
-        .initial_stream_window_size(STREAM_WINDOW)
-        .initial_connection_window_size(CONNECTION_WINDOW)
+        .initial_stream_window_size(stream_window)
+        .initial_connection_window_size(connection_window(stream_window))
         .max_concurrent_streams(MAX_CALLS_PER_CONNECTION)
         .http2_keepalive_interval(Some(std::time::Duration::from_secs(30)))
         .add_service(kin)

@@ -161,20 +161,54 @@ async fn backpressure_reaches_the_sender_when_nobody_reads() {
     // connection must survive that (h2 once closed it with GOAWAY
     // ENHANCE_YOUR_CALM "too_many_data_frames" after ~2,700 unread requests).
     // Then everything is read back, in order.
-    const N: u64 = 30_000;
-    let app = spawn_app().await;
+    // With HTTP/2's default window (--grpc-stream-window 65535) and the 16
+    // times larger default (1 MiB), which lets the client send about 10,000
+    // more of these ~90-byte frames ahead (10,047 against 20,819 when
+    // written). The larger one also stays safe with the smallest frames a
+    // client can send (7 bytes: an id alone, each answered with an error):
+    // the connection window grows with it, so h2's small-frame budget still
+    // holds a stalled window of them (with a 16 MiB connection window, as
+    // before the setting, h2 closed this connection).
+    let app = spawn_app_with(|c| c.grpc_stream_window = 65_535).await;
+    let stalled = stall_then_read(&app, 30_000, small_fk_request, true).await;
+    let app = spawn_app_with(|c| assert_eq!(c.grpc_stream_window, 1 << 20)).await;
+    let stalled_wide = stall_then_read(&app, 30_000, small_fk_request, true).await;
+    assert!(
+        stalled_wide > stalled + 5_000,
+        "1 MiB window stalled at {stalled_wide}, 64 KiB at {stalled}"
+    );
+    stall_then_read(&app, 200_000, id_only_request, false).await;
+}
+
+fn small_fk_request(i: u64) -> pb::StreamForwardKinematicsRequest {
+    let q = [0.001 * (i % 1000) as f64, 0.0, 0.0, 0.0, 0.0, 0.0];
+    stream_request(i, "puma560", &q, None)
+}
+
+/// A request of an id alone (no robot): a 2-byte message, a 7-byte DATA frame.
+fn id_only_request(i: u64) -> pb::StreamForwardKinematicsRequest {
+    pb::StreamForwardKinematicsRequest {
+        id: i % 100 + 1,
+        ..Default::default()
+    }
+}
+
+/// Sends up to `n` requests on one stream while nothing is read, waits until
+/// the sender makes no more progress, asserts it stalled before `n`, then
+/// reads every reply (poses if `pose`, else errors) and returns where it stalled.
+async fn stall_then_read(
+    app: &TestApp,
+    n: u64,
+    request: fn(u64) -> pb::StreamForwardKinematicsRequest,
+    pose: bool,
+) -> u64 {
     let mut c = app.grpc_client().await;
     let (tx, mut rx) = open_stream(&mut c, 1).await;
     let sent = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let counter = sent.clone();
     let sender = tokio::spawn(async move {
-        for i in 0..N {
-            let q = [0.001 * (i % 1000) as f64, 0.0, 0.0, 0.0, 0.0, 0.0];
-            if tx
-                .send(stream_request(i, "puma560", &q, None))
-                .await
-                .is_err()
-            {
+        for i in 0..n {
+            if tx.send(request(i)).await.is_err() {
                 return;
             }
             counter.store(i + 1, std::sync::atomic::Ordering::SeqCst);
@@ -185,29 +219,31 @@ async fn backpressure_reaches_the_sender_when_nobody_reads() {
     for _ in 0..100 {
         tokio::time::sleep(std::time::Duration::from_millis(300)).await;
         let now = sent.load(std::sync::atomic::Ordering::SeqCst);
-        if now == last || now == N {
+        if now == last || now == n {
             break;
         }
         last = now;
     }
     let stalled_at = sent.load(std::sync::atomic::Ordering::SeqCst);
     assert!(
-        stalled_at < N,
-        "the client pushed all {N} requests with nobody reading: unbounded buffering"
+        stalled_at < n,
+        "the client pushed all {n} requests with nobody reading: unbounded buffering"
     );
-    // Now read: the sender resumes and every response arrives, in order.
-    let mut n = 0u64;
-    while let Some(m) = rx
-        .message()
-        .await
-        .unwrap_or_else(|e| panic!("stream error after {n} responses: {e:?}"))
-    {
-        assert_eq!(m.id, n, "in order");
-        assert!(matches!(m.result, Some(StreamResult::Pose(_))), "id {n}");
-        n += 1;
+    // Now read: the sender resumes and every reply arrives, in order.
+    let mut k = 0u64;
+    while let Some(m) = rx.message().await.unwrap_or_else(|e| {
+        panic!("stream error after {k} replies (stalled at {stalled_at}): {e:?}")
+    }) {
+        assert_eq!(m.id, request(k).id, "in order");
+        match (&m.result, pose) {
+            (Some(StreamResult::Pose(_)), true) | (Some(StreamResult::Error(_)), false) => {}
+            other => panic!("reply {k}: {other:?}"),
+        }
+        k += 1;
     }
-    assert_eq!(n, N);
+    assert_eq!(k, n);
     sender.await.unwrap();
+    stalled_at
 }
 
 #[tokio::test]
