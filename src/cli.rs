@@ -90,8 +90,12 @@ fn serve(config: ServeConfig) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let tracing =
-        crate::telemetry::traces::init(config.log_format, &config.traces, Some(runtime.handle()));
+    let tracing = crate::telemetry::traces::init(
+        config.log_format,
+        crate::telemetry::traces::LogLines::OffThread,
+        &config.traces,
+        Some(runtime.handle()),
+    );
     let tracing = match tracing {
         Ok(t) => t,
         Err(e) => {
@@ -103,12 +107,14 @@ fn serve(config: ServeConfig) -> ExitCode {
         let app = crate::startup::App::build(config).await?;
         app.run_until_stopped().await
     });
-    // The spans still buffered are sent while the runtime still runs.
+    if let Err(e) = &result {
+        tracing::error!(error = %e, "kinserve failed");
+    }
+    // The spans and log lines still buffered go out while the runtime still runs.
     tracing.shutdown();
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!(error = %e, "kinserve failed");
             eprintln!("kinserve: {e}");
             ExitCode::FAILURE
         }

@@ -30,8 +30,13 @@ pub enum LogFormat {
 /// Later calls do nothing.
 /// Trace export stays off; [`traces::init`] also exports.
 pub fn init_tracing(format: LogFormat) {
-    let _ =
-        traces::init(format, &traces::TraceConfig::default(), None).map(traces::Tracing::shutdown);
+    let _ = traces::init(
+        format,
+        traces::LogLines::Direct,
+        &traces::TraceConfig::default(),
+        None,
+    )
+    .map(traces::Tracing::shutdown);
 }
 
 /// Latency histogram buckets in seconds (50 µs … 10 s).
@@ -190,6 +195,10 @@ pub const FAMILIES: &[(&str, &str)] = &[
         "process_cpu_seconds_total",
         "User and system CPU time of the process in seconds.",
     ),
+    (
+        "kinserve_log_lines_dropped_total",
+        "Log lines dropped because the log writer thread fell behind (its queue holds 65,536).",
+    ),
     ("process_open_fds", "Open file descriptors of the process."),
     (
         "process_start_time_seconds",
@@ -314,8 +323,10 @@ impl Drop for StreamGuard {
     }
 }
 
-/// Refreshes the `process_*` gauges from `/proc/self` (Linux; elsewhere nothing).
+/// Refreshes the `process_*` gauges from `/proc/self` (Linux; elsewhere
+/// nothing) and the count of dropped log lines.
 pub fn update_process_metrics() {
+    metrics::counter!("kinserve_log_lines_dropped_total").absolute(traces::log_lines_dropped());
     let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
         return;
     };

@@ -130,3 +130,35 @@ async fn the_access_log_can_be_turned_off() {
         "audit stays on"
     );
 }
+
+/// Log lines are written by a thread of their own: with stderr a pipe that
+/// nobody reads (its 64 KiB fill after a few hundred access lines), requests
+/// are still answered, each within a second. When every line was written by
+/// the request's own worker, the request after the pipe filled waited for
+/// ever.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stalled_stderr_does_not_stall_requests() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("stderr.fifo");
+    let fifo = fifo.to_str().unwrap();
+    // Opened read-write so that the open does not wait for a reader; nothing reads it.
+    let script = format!("mkfifo '{fifo}' && exec 3<>'{fifo}' && exec \"$0\" serve 2>&3");
+    let env = [("RUST_LOG", "info"), ("KINSERVE_LOG_FORMAT", "json")];
+    let data = dir.path().join("data");
+    std::fs::create_dir(&data).unwrap();
+    let server = start_server(&data, &env, Some(&script)).await;
+    let client = reqwest::Client::new();
+    for i in 0..3_000 {
+        let answer = tokio::time::timeout(
+            std::time::Duration::from_secs(1),
+            client
+                .post(format!("{}/v1/robots/puma560/fk", server.http))
+                .json(&json!({"joints": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}))
+                .send(),
+        )
+        .await
+        .unwrap_or_else(|_| panic!("request {i} waited over 1 s: the log pipe stalls requests"))
+        .unwrap();
+        assert_eq!(answer.status(), 200, "request {i}");
+    }
+}
