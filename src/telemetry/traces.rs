@@ -1,7 +1,8 @@
-//! The tracing subscriber, and OpenTelemetry trace export over OTLP when
+//! The tracing subscriber (its log lines written directly or by a thread of
+//! their own, [`LogLines`]), and OpenTelemetry trace export over OTLP when
 //! `--otlp-endpoint` is set: configuration, the exporter (gRPC or
 //! HTTP/protobuf, batched), the parent-based ratio sampler, and the flush on
-//! exit. Without an endpoint no exporter, span buffer or background thread
+//! exit. Without an endpoint no exporter, span buffer or exporter thread
 //! exists and the trace spans (target `kinserve::trace`, level DEBUG) are
 //! disabled at their call sites. Depends on no other module of the crate.
 
@@ -178,11 +179,13 @@ pub fn init(
 pub enum LogLines {
     /// Queued to a thread of their own that writes them (batched while busy,
     /// flushed when the queue is empty), so a request never waits for a
-    /// `write` to stderr: the server. An access-log line per request written
-    /// by the request's own worker cost 12 % of REST FK throughput and 19 %
-    /// of `/healthz`'s (wrk, 64 connections), and a stalled stderr pipe
-    /// stalled every request. Up to [`LOG_QUEUE_LINES`] lines wait; past
-    /// that, lines are dropped and counted (`kinserve_log_lines_dropped_total`).
+    /// `write` to stderr: the server. Each request's worker writing its own
+    /// access-log line stalled every request behind a stalled stderr pipe,
+    /// and the line cost 12 % of REST FK throughput and 19 % of `/healthz`'s
+    /// (wrk, 64 connections, access log on against off); off the worker,
+    /// about half of that came back (the line is still formatted there).
+    /// Up to [`LOG_QUEUE_LINES`] lines wait; past that, lines are dropped
+    /// and counted (`kinserve_log_lines_dropped_total`).
     OffThread,
     /// Written by the thread that logs (one-shot commands).
     Direct,
