@@ -125,7 +125,7 @@ pub(crate) trait Lane8: Lane {
 
 /// The twelve vectors of a batch block's state as arrays, by plain loops: a
 /// closure (`array::map`) does not inherit the kernel's target features, so
-/// its `store8` became a call per vector (the AVX2 batch ran 3.6 × slower).
+/// its `store8` became a call per vector (the AVX2 batch took 2.3 × as long).
 #[inline(always)]
 fn store_state<V: Lane8>(m: &[[V; 4]; 3]) -> [[[f64; 8]; 4]; 3] {
     let mut e = [[[0.0; 8]; 4]; 3];
