@@ -19,11 +19,16 @@ fn with_target<'a>(lines: &'a [Value], target: &str) -> Vec<&'a Value> {
     lines.iter().filter(|l| l["target"] == target).collect()
 }
 
-async fn exercise(server: &Server) {
-    let client = reqwest::Client::new();
-    let fk = client
+/// `POST /v1/robots/puma560/fk` of the zero configuration, ready to send.
+fn zero_fk(client: &reqwest::Client, server: &Server) -> reqwest::RequestBuilder {
+    client
         .post(format!("{}/v1/robots/puma560/fk", server.http))
         .json(&json!({"joints": [0, 0, 0, 0, 0, 0]}))
+}
+
+async fn exercise(server: &Server) {
+    let client = reqwest::Client::new();
+    let fk = zero_fk(&client, server)
         .header("x-request-id", "req-42")
         .send()
         .await
@@ -151,10 +156,7 @@ async fn a_stalled_stderr_does_not_stall_requests() {
     for i in 0..3_000 {
         let answer = tokio::time::timeout(
             std::time::Duration::from_secs(1),
-            client
-                .post(format!("{}/v1/robots/puma560/fk", server.http))
-                .json(&json!({"joints": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}))
-                .send(),
+            zero_fk(&client, &server).send(),
         )
         .await
         .unwrap_or_else(|_| panic!("request {i} waited over 1 s: the log pipe stalls requests"))
@@ -180,12 +182,7 @@ async fn every_queued_line_is_written_at_a_normal_stop() {
     let mut server = start_server(dir.path(), &env, None).await;
     let client = reqwest::Client::new();
     for _ in 0..REQUESTS {
-        let r = client
-            .post(format!("{}/v1/robots/puma560/fk", server.http))
-            .json(&json!({"joints": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}))
-            .send()
-            .await
-            .unwrap();
+        let r = zero_fk(&client, &server).send().await.unwrap();
         assert_eq!(r.status(), 200);
     }
     server.terminate();
