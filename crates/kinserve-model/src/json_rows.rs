@@ -18,13 +18,16 @@
 //! errors and accepted bodies are exactly those of the plain parse. Why the
 //! two agree is argued at [`split_rows`]; tests compare them on random bodies.
 //!
-//! Depends on the json and requests modules and on `fast-float2` only.
+//! Depends on the json and requests modules and on `fast-float2` only
+//! (and its own [`decimal`] conversion).
 
 use serde::de::DeserializeOwned;
 
 use crate::error::Result;
 use crate::json::parse_json;
 use crate::requests::Configurations;
+
+mod decimal;
 
 /// [`parse_json`] of a JSON object whose top-level `key` holds an array of
 /// arrays of numbers, which `rows` says where to put: the same value and the
@@ -213,44 +216,68 @@ fn read_array(
 /// The JSON number starting at `i` and the offset after it; `None` if it is
 /// not one by JSON's grammar (`-? (0 | [1-9][0-9]*) (. [0-9]+)? ([eE] [+-]? [0-9]+)?`),
 /// its exponent has more than four digits, or it is beyond `f64`'s range.
+///
+/// The digits are read to an integer as they are scanned (eight at a time);
+/// up to 19 digits and a power of ten within [`decimal`]'s range, that
+/// integer and the power give the correctly rounded value directly; anything
+/// else is converted by `fast-float2` from the bytes.
 fn read_number(b: &[u8], start: usize) -> Option<(f64, usize)> {
     let mut i = start;
-    if b.get(i) == Some(&b'-') {
+    let negative = b.get(i) == Some(&b'-');
+    if negative {
         i += 1;
     }
-    match b.get(i)? {
-        b'0' => i += 1,
-        b'1'..=b'9' => i = digits(b, i + 1),
-        _ => return None,
+    let int_start = i;
+    let (mut mantissa, int_end) = digits(b, i, 0);
+    // At least one digit, and no leading zero (`0` alone is one digit).
+    if int_end == int_start || (b.get(int_start) == Some(&b'0') && int_end > int_start + 1) {
+        return None;
     }
+    i = int_end;
+    let mut fraction = 0;
     if b.get(i) == Some(&b'.') {
-        let after = digits(b, i + 1);
-        if after == i + 1 {
+        let (m, after) = digits(b, i + 1, mantissa);
+        fraction = after - (i + 1);
+        if fraction == 0 {
             return None;
         }
-        i = after;
+        (mantissa, i) = (m, after);
     }
+    let mut exponent = 0i32;
     if matches!(b.get(i), Some(b'e' | b'E')) {
         i += 1;
+        let minus = b.get(i) == Some(&b'-');
         if matches!(b.get(i), Some(b'+' | b'-')) {
             i += 1;
         }
-        let after = digits(b, i);
+        let (e, after) = digits(b, i, 0);
         if after == i || after - i > 4 {
             return None;
         }
+        // At most four digits: below 10^4, so the cast is exact.
+        exponent = if minus { -(e as i32) } else { e as i32 };
         i = after;
+    }
+    // Up to 19 digits the integer did not wrap (10^19 < 2^64).
+    if int_end - int_start + fraction <= 19
+        && let Some(x) = decimal::to_f64(mantissa, exponent - fraction as i32, negative)
+    {
+        return Some((x, i));
     }
     let x: f64 = fast_float2::parse(b.get(start..i)?).ok()?;
     x.is_finite().then_some((x, i))
 }
 
-/// Offset of the first byte at or after `i` that is not an ASCII digit:
-/// eight bytes at a time while eight remain, then one by one.
-fn digits(b: &[u8], mut i: usize) -> usize {
+/// The run of ASCII digits at `i`: `value` followed by them as an integer
+/// (wrapping: only meaningful up to 19 digits in all) and the offset of the
+/// first byte that is not a digit. Eight bytes at a time while eight remain,
+/// then one by one.
+#[inline(always)]
+fn digits(b: &[u8], mut i: usize, mut value: u64) -> (u64, usize) {
     const HIGH: u64 = 0xF0F0_F0F0_F0F0_F0F0;
     const ZEROS: u64 = 0x3030_3030_3030_3030;
     const SIXES: u64 = 0x0606_0606_0606_0606;
+    const SCALE: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
     while let Some(Ok(eight)) = b.get(i..i + 8).map(<[u8; 8]>::try_from) {
         let x = u64::from_le_bytes(eight);
         // A byte is a digit when its high nibble is 3 and adding 6 keeps it
@@ -258,14 +285,40 @@ fn digits(b: &[u8], mut i: usize) -> usize {
         // it, and the first non-digit is what counts.
         let not_digit = ((x & HIGH) ^ ZEROS) | ((x.wrapping_add(SIXES) & HIGH) ^ ZEROS);
         if not_digit != 0 {
-            return i + (not_digit.trailing_zeros() / 8) as usize;
+            let n = (not_digit.trailing_zeros() / 8) as usize;
+            if n > 0 {
+                // The n digits moved to the top, zeros (as digit values) below
+                // them; a borrow from the bytes beyond them is shifted out.
+                let tail = eight_digits(x.wrapping_sub(ZEROS) << (64 - 8 * n));
+                value = value.wrapping_mul(SCALE[n]).wrapping_add(tail);
+            }
+            return (value, i + n);
         }
+        value = value
+            .wrapping_mul(100_000_000)
+            .wrapping_add(eight_digits(x.wrapping_sub(ZEROS)));
         i += 8;
     }
-    while matches!(b.get(i), Some(b'0'..=b'9')) {
+    while let Some(&c @ b'0'..=b'9') = b.get(i) {
+        value = value.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
         i += 1;
     }
-    i
+    (value, i)
+}
+
+/// Eight digit values (0–9, the first in the lowest byte) as one integer:
+/// pairs, then quadruples, then the two halves (fast_float's
+/// `parse_eight_digits_unrolled`).
+#[inline(always)]
+fn eight_digits(v: u64) -> u64 {
+    const MASK: u64 = 0x0000_00FF_0000_00FF;
+    const MUL1: u64 = 100 + (1_000_000 << 32);
+    const MUL2: u64 = 1 + (10_000 << 32);
+    let v = v.wrapping_mul(10).wrapping_add(v >> 8);
+    let halves = (v & MASK)
+        .wrapping_mul(MUL1)
+        .wrapping_add(((v >> 16) & MASK).wrapping_mul(MUL2));
+    u64::from(halves.wrapping_shr(32) as u32)
 }
 
 #[cfg(test)]

@@ -263,13 +263,18 @@ fn what_the_fast_path_leaves_to_the_plain_parse() {
 
 #[test]
 fn digits_stop_at_the_first_non_digit_eight_at_a_time_or_one_by_one() {
-    // Every byte value at every offset of a 20-byte run of digits.
+    // Every byte value at every offset of a 20-byte run of digits: where the
+    // run stops, and the run read as an integer after a value already read.
+    let run = b"31415926535897932384";
     for at in 0..20 {
         for c in 0..=255u8 {
-            let mut b = vec![b'7'; 20];
+            let mut b = run.to_vec();
             b[at] = c;
-            let want = if c.is_ascii_digit() { 20 } else { at };
-            assert_eq!(super::digits(&b, 0), want, "byte {c} at {at}");
+            let end = if c.is_ascii_digit() { 20 } else { at };
+            let value = b[..end].iter().fold(7u64, |v, d| {
+                v.wrapping_mul(10).wrapping_add(u64::from(d - b'0'))
+            });
+            assert_eq!(super::digits(&b, 0, 7), (value, end), "byte {c} at {at}");
         }
     }
 }
