@@ -1,5 +1,6 @@
 //! A fast path for JSON bodies that carry many joint configurations (or
-//! poses) under one top-level key: `{"configurations": [[…], …], …}`.
+//! poses) under one top-level key: `{"configurations": [[…], …], …}`, or one
+//! joint vector: `{"joints": […], …}` ([`parse_json_values`]).
 //!
 //! serde_json reads a number through its general parser (correctly rounded,
 //! with `float_roundtrip`), then hands it to a visitor: on a 10,000-row batch
@@ -76,11 +77,61 @@ pub fn parse_json_rows<T: DeserializeOwned>(
 pub fn split_rows(bytes: &[u8], key: &str) -> Option<(Vec<u8>, Configurations)> {
     let start = find_value(bytes, key.as_bytes())?;
     let (rows, end) = read_rows(bytes, start)?;
-    let mut rest = Vec::with_capacity(bytes.len() - (end - start) + 2);
-    rest.extend_from_slice(bytes.get(..start)?);
+    Some((without(bytes, start..end)?, rows))
+}
+
+/// [`parse_json_rows`] for a top-level `key` holding one array of numbers
+/// (a joint vector), put where `values` says: the same value and the same
+/// errors as [`parse_json`], each number read by the fast scanner (see
+/// [`split_values`]).
+///
+/// ```
+/// use kinserve_model::parse_json_values;
+/// #[derive(serde::Deserialize)]
+/// struct Fk { joints: Vec<f64>, angle_unit: String }
+/// let body = br#"{"joints": [0.5, -1e-3, 2], "angle_unit": "rad"}"#;
+/// let fk: Fk = parse_json_values(body, "joints", |f: &mut Fk| &mut f.joints)?;
+/// assert_eq!(fk.joints, [0.5, -1e-3, 2.0]);
+/// assert_eq!(fk.angle_unit, "rad");
+/// # Ok::<(), kinserve_model::ModelError>(())
+/// ```
+pub fn parse_json_values<T: DeserializeOwned>(
+    bytes: &[u8],
+    key: &str,
+    values: impl FnOnce(&mut T) -> &mut Vec<f64>,
+) -> Result<T> {
+    // As in `parse_json_rows`: a failure goes to the plain parse.
+    if let Some((rest, found)) = split_values(bytes, key)
+        && let Ok(mut value) = serde_json::from_slice::<T>(&rest)
+    {
+        *values(&mut value) = found;
+        return Ok(value);
+    }
+    parse_json(bytes)
+}
+
+/// [`split_rows`] for an array of numbers: the body with the array under
+/// top-level `key` replaced by `[]`, and its numbers; `None` when the fast
+/// path does not apply. The argument of [`split_rows`] holds as it is.
+pub fn split_values(bytes: &[u8], key: &str) -> Option<(Vec<u8>, Vec<f64>)> {
+    let start = find_value(bytes, key.as_bytes())?;
+    // Room for a 7-joint arm without regrowing.
+    let mut values = Vec::with_capacity(8);
+    let (_, end) = read_array(bytes, start, |at| {
+        let (x, after) = read_number(bytes, at)?;
+        values.push(x);
+        Some(after)
+    })?;
+    Some((without(bytes, start..end)?, values))
+}
+
+/// `bytes` with `range` replaced by `[]`.
+fn without(bytes: &[u8], range: std::ops::Range<usize>) -> Option<Vec<u8>> {
+    let mut rest = Vec::with_capacity(bytes.len() - range.len() + 2);
+    rest.extend_from_slice(bytes.get(..range.start)?);
     rest.extend_from_slice(b"[]");
-    rest.extend_from_slice(bytes.get(end..)?);
-    Some((rest, rows))
+    rest.extend_from_slice(bytes.get(range.end..)?);
+    Some(rest)
 }
 
 /// Offset of the value of the first top-level member named `key` (written
@@ -223,10 +274,9 @@ fn read_array(
 /// else is converted by `fast-float2` from the bytes.
 fn read_number(b: &[u8], start: usize) -> Option<(f64, usize)> {
     let mut i = start;
+    // Branch-free: the sign varies from number to number.
     let negative = b.get(i) == Some(&b'-');
-    if negative {
-        i += 1;
-    }
+    i += usize::from(negative);
     let int_start = i;
     let (mut mantissa, int_end) = digits(b, i, 0);
     // At least one digit, and no leading zero (`0` alone is one digit).
@@ -236,7 +286,7 @@ fn read_number(b: &[u8], start: usize) -> Option<(f64, usize)> {
     i = int_end;
     let mut fraction = 0;
     if b.get(i) == Some(&b'.') {
-        let (m, after) = digits(b, i + 1, mantissa);
+        let (m, after) = fraction_digits(b, i + 1, mantissa);
         fraction = after - (i + 1);
         if fraction == 0 {
             return None;
@@ -268,16 +318,31 @@ fn read_number(b: &[u8], start: usize) -> Option<(f64, usize)> {
     x.is_finite().then_some((x, i))
 }
 
+/// The high nibbles of eight bytes.
+const HIGH: u64 = 0xF0F0_F0F0_F0F0_F0F0;
+/// Eight ASCII zeros.
+const ZEROS: u64 = 0x3030_3030_3030_3030;
+/// Eight sixes (a digit plus six keeps its high nibble 3).
+const SIXES: u64 = 0x0606_0606_0606_0606;
+/// 10^n for n digits (0 to 8).
+const SCALE: [u64; 9] = [
+    1,
+    10,
+    100,
+    1_000,
+    10_000,
+    100_000,
+    1_000_000,
+    10_000_000,
+    100_000_000,
+];
+
 /// The run of ASCII digits at `i`: `value` followed by them as an integer
 /// (wrapping: only meaningful up to 19 digits in all) and the offset of the
 /// first byte that is not a digit. Eight bytes at a time while eight remain,
 /// then one by one.
 #[inline(always)]
 fn digits(b: &[u8], mut i: usize, mut value: u64) -> (u64, usize) {
-    const HIGH: u64 = 0xF0F0_F0F0_F0F0_F0F0;
-    const ZEROS: u64 = 0x3030_3030_3030_3030;
-    const SIXES: u64 = 0x0606_0606_0606_0606;
-    const SCALE: [u64; 8] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000];
     while let Some(Ok(eight)) = b.get(i..i + 8).map(<[u8; 8]>::try_from) {
         let x = u64::from_le_bytes(eight);
         // A byte is a digit when its high nibble is 3 and adding 6 keeps it
@@ -304,6 +369,38 @@ fn digits(b: &[u8], mut i: usize, mut value: u64) -> (u64, usize) {
         i += 1;
     }
     (value, i)
+}
+
+/// [`digits`] for the digits after a decimal point, whose count varies from
+/// number to number (15 to 17 in a double's shortest spelling): the first
+/// sixteen bytes are read as two words without a branch on where the run
+/// ends, [`digits`] goes on only after sixteen digits.
+#[inline(always)]
+fn fraction_digits(b: &[u8], i: usize, value: u64) -> (u64, usize) {
+    let Some(Ok(sixteen)) = b.get(i..i + 16).map(<[u8; 16]>::try_from) else {
+        return digits(b, i, value);
+    };
+    let word = |k: usize| {
+        let mut w = [0; 8];
+        w.copy_from_slice(&sixteen[8 * k..8 * k + 8]);
+        let x = u64::from_le_bytes(w);
+        let not_digit = ((x & HIGH) ^ ZEROS) | ((x.wrapping_add(SIXES) & HIGH) ^ ZEROS);
+        (
+            x.wrapping_sub(ZEROS),
+            (not_digit.trailing_zeros() / 8) as usize,
+        )
+    };
+    let (x1, n1) = word(0);
+    let (x2, n2) = word(1);
+    let n2 = if n1 == 8 { n2 } else { 0 };
+    // The n digits of a word moved to its top (see `digits`); none: 0.
+    let top = |x: u64, n: usize| eight_digits(x.checked_shl(64 - 8 * n as u32).unwrap_or(0));
+    let value = value.wrapping_mul(SCALE[n1]).wrapping_add(top(x1, n1));
+    let value = value.wrapping_mul(SCALE[n2]).wrapping_add(top(x2, n2));
+    if n1 + n2 == 16 {
+        return digits(b, i + 16, value);
+    }
+    (value, i + n1 + n2)
 }
 
 /// Eight digit values (0–9, the first in the lowest byte) as one integer:

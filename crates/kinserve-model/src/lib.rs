@@ -57,7 +57,7 @@ pub use joints::{JointBatch, JointVector};
 pub use json::{
     MAX_ROBOT_FILE_BYTES, load_robot_file, load_robot_file_with, parse_json, read_robot_file,
 };
-pub use json_rows::{parse_json_rows, split_rows};
+pub use json_rows::{parse_json_rows, parse_json_values, split_rows, split_values};
 pub use pose_format::{BatchPoses, PoseFormat, matrix12};
 pub use requests::{
     Configurations, FkBatchSpec, FkSpec, JacobianBatchSpec, JacobianSpec, StreamOp,

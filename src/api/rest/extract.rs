@@ -11,7 +11,7 @@ use super::AppState;
 use super::problem::ApiError;
 use crate::compute::ClientId;
 use crate::error::Error;
-use crate::model::{Configurations, parse_json, parse_json_rows};
+use crate::model::{Configurations, parse_json, parse_json_rows, parse_json_values};
 
 /// A JSON body parsed with field paths. Checks the content type (415), the
 /// body size (413: the batch limit on the routes admitted as batches, the
@@ -123,6 +123,18 @@ pub fn parse_object_rows<T: DeserializeOwned>(
 ) -> Result<T, Error> {
     refuse_array(bytes)?;
     Ok(parse_json_rows(bytes, "configurations", rows)?)
+}
+
+/// [`parse_object`] of a body with one joint vector under `joints`, read
+/// by the fast path of [`parse_json_values`] (the same value and errors; the
+/// numbers were most of a WebSocket message's parse, BENCHMARKS.md) and put
+/// where `joints` says.
+pub fn parse_object_joints<T: DeserializeOwned>(
+    bytes: &[u8],
+    joints: impl FnOnce(&mut T) -> &mut Vec<f64>,
+) -> Result<T, Error> {
+    refuse_array(bytes)?;
+    Ok(parse_json_values(bytes, "joints", joints)?)
 }
 
 /// A top-level array as a wrong type (see [`parse_object`]).

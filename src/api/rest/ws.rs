@@ -14,7 +14,7 @@ use tokio::time::Instant;
 
 use super::AppState;
 use super::dto::{WsIdOnly, WsIk, WsIkPath, WsJacobian, WsReply, WsRequest};
-use super::extract::{Client, RobotName, parse_object};
+use super::extract::{Client, RobotName, parse_object_joints};
 use super::problem::{ApiError, Problem};
 use crate::api::budget::{ConnectionStreams, StreamPermit};
 use crate::api::pose_format::{self, PoseFormat};
@@ -287,11 +287,16 @@ fn reply_text(reply: &WsReply<'_>, capacity: usize) -> String {
         .unwrap_or_default()
 }
 
+/// Where a message's `joints` go (present whenever the fast path read them).
+fn ws_joints(r: &mut WsRequest) -> &mut Vec<f64> {
+    r.joints.get_or_insert_with(Vec::new)
+}
+
 /// The reply to one text message: parsed into the protocol-neutral
 /// [`StreamOp`], answered by [`Service::stream_step`](crate::service::Service::stream_step)
 /// (the same step as the gRPC stream's), written as JSON.
 async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
-    let mut req: WsRequest = match parse_object(bytes) {
+    let mut req: WsRequest = match parse_object_joints(bytes, ws_joints) {
         Ok(r) => r,
         Err(e) => {
             let id = serde_json::from_slice::<WsIdOnly>(bytes)

@@ -36,7 +36,8 @@ pub(super) fn to_f64(mantissa: u64, power: i32, negative: bool) -> Option<f64> {
     } else {
         eisel_lemire(mantissa, power)?
     };
-    Some(if negative { -x } else { x })
+    // The sign bit set without a branch (x is not negative).
+    Some(f64::from_bits(x.to_bits() | u64::from(negative) << 63))
 }
 
 /// 10^0 … 10^22, every one an exact `f64`.

@@ -5,7 +5,7 @@
 use kinserve_testkit::SplitMix64;
 use serde::Deserialize;
 
-use super::{parse_json_rows, split_rows};
+use super::{parse_json_rows, parse_json_values, split_rows, split_values};
 use crate::json::parse_json;
 use crate::requests::Configurations;
 
@@ -21,27 +21,50 @@ struct Body {
     extra: Option<serde_json::Value>,
 }
 
+/// A body with one joint vector, as the WebSocket messages have.
+#[derive(Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+struct JointsBody {
+    joints: Vec<f64>,
+    #[serde(default)]
+    angle_unit: Option<String>,
+    #[serde(default)]
+    check_limits: Option<bool>,
+    #[serde(default)]
+    extra: Option<serde_json::Value>,
+}
+
 /// One of `items`, chosen by `r`.
 fn pick<'a>(r: &mut SplitMix64, items: &[&'a str]) -> &'a str {
     items[r.below(items.len())]
 }
 
-/// Parses `bytes` both ways and checks they agree; true if both succeeded.
+/// Parses `bytes` both ways (as a batch body, or as a joint vector body when
+/// it names `joints`) and checks they agree; true if both succeeded.
 fn agree(bytes: &[u8]) -> bool {
+    if bytes.windows(8).any(|w| w == b"\"joints\"") {
+        let fast = parse_json_values(bytes, "joints", |b: &mut JointsBody| &mut b.joints);
+        return agree_with(bytes, fast, |b| &b.joints);
+    }
     let fast = parse_json_rows(bytes, "configurations", |b: &mut Body| {
         &mut b.configurations
     });
-    let plain = parse_json::<Body>(bytes);
+    agree_with(bytes, fast, |b| &b.configurations.values)
+}
+
+/// `fast` against the plain parse of `bytes`, the numbers `values` picks
+/// compared bit for bit.
+fn agree_with<T: serde::de::DeserializeOwned + PartialEq + std::fmt::Debug>(
+    bytes: &[u8],
+    fast: crate::error::Result<T>,
+    values: impl Fn(&T) -> &Vec<f64>,
+) -> bool {
+    let plain = parse_json::<T>(bytes);
     let text = String::from_utf8_lossy(bytes);
     match (fast, plain) {
         (Ok(f), Ok(p)) => {
-            let bits =
-                |c: &Configurations| c.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(
-                bits(&f.configurations),
-                bits(&p.configurations),
-                "values of {text}"
-            );
+            let bits = |v: &Vec<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(values(&f)), bits(values(&p)), "values of {text}");
             assert_eq!(f, p, "{text}");
             true
         }
@@ -82,20 +105,25 @@ fn number(r: &mut SplitMix64) -> String {
     }
 }
 
+/// An array of numbers.
+fn row(r: &mut SplitMix64) -> String {
+    let mut s = "[".to_string();
+    for j in 0..r.below(9) {
+        if j > 0 {
+            s += &format!("{},{}", pick(r, WS), pick(r, WS));
+        }
+        s += &number(r);
+    }
+    s + pick(r, WS) + "]"
+}
+
 fn rows(r: &mut SplitMix64) -> String {
     let mut s = format!("[{}", pick(r, WS));
     for i in 0..r.below(7) {
         if i > 0 {
             s += &format!("{},{}", pick(r, WS), pick(r, WS));
         }
-        s += "[";
-        for j in 0..r.below(9) {
-            if j > 0 {
-                s += &format!("{},{}", pick(r, WS), pick(r, WS));
-            }
-            s += &number(r);
-        }
-        s += &format!("{}]", pick(r, WS));
+        s += &row(r);
     }
     s + pick(r, WS) + "]"
 }
@@ -103,11 +131,16 @@ fn rows(r: &mut SplitMix64) -> String {
 /// A valid body: the members in random order, tricky strings and nesting
 /// around the array.
 fn body(r: &mut SplitMix64) -> String {
+    body_with(r, "configurations", rows)
+}
+
+/// A valid body with `key` holding what `array` writes, members as [`body`]'s.
+fn body_with(r: &mut SplitMix64, key: &str, array: fn(&mut SplitMix64) -> String) -> String {
     let mut members = vec![format!(
-        "\"configurations\"{}:{}{}",
+        "\"{key}\"{}:{}{}",
         pick(r, WS),
         pick(r, WS),
-        rows(r)
+        array(r)
     )];
     if r.below(2) == 0 {
         let unit = pick(
@@ -154,6 +187,12 @@ fn random_bodies_read_the_same_and_take_the_fast_path() {
             "not taken: {b}"
         );
         assert!(agree(b.as_bytes()), "refused: {b}");
+        let b = body_with(&mut r, "joints", row);
+        assert!(
+            split_values(b.as_bytes(), "joints").is_some(),
+            "not taken: {b}"
+        );
+        assert!(agree(b.as_bytes()), "refused: {b}");
     }
 }
 
@@ -162,8 +201,13 @@ fn corrupted_bodies_give_the_same_value_or_the_same_error() {
     const BYTES: &[u8] = b"\",][}{0-.eE+\\a 1:n";
     let mut r = SplitMix64(11);
     let (mut ok, mut err) = (0, 0);
-    for _ in 0..20_000 {
-        let mut b = body(&mut r).into_bytes();
+    for n in 0..40_000 {
+        let mut b = if n % 2 == 0 {
+            body(&mut r)
+        } else {
+            body_with(&mut r, "joints", row)
+        }
+        .into_bytes();
         for _ in 0..1 + r.below(2) {
             let at = r.below(b.len());
             let c = BYTES[r.below(BYTES.len())];
@@ -235,6 +279,7 @@ fn edge_numbers_read_as_serde_reads_them() {
         for row in [format!("[{n}]"), format!("[1,{n},2]"), format!("[[{n}]]")] {
             agree(format!("{{\"configurations\":[{row}]}}").as_bytes());
             agree(format!("{{\"configurations\":{row}}}").as_bytes());
+            agree(format!("{{\"joints\":{row}}}").as_bytes());
         }
     }
 }
@@ -250,6 +295,17 @@ fn what_the_fast_path_leaves_to_the_plain_parse() {
     assert!(none(r#"{"configurations":[[1e00005]]}"#));
     assert!(none(r#"{"configurations":[[1e999]]}"#));
     assert!(none(r#"[{"configurations":[[1]]}]"#));
+    // A joint vector: an array of numbers, nothing else.
+    let no_values = |b: &str| split_values(b.as_bytes(), "joints").is_none();
+    assert!(no_values(r#"{"joints":[[1]]}"#));
+    assert!(no_values(r#"{"joints":1}"#));
+    assert!(no_values(r#"{"joints":null}"#));
+    assert!(no_values(r#"{"joints":[1,"2"]}"#));
+    let (rest, values) =
+        split_values(br#"{"id":"[","joints": [1, -0, 2.5e-3]}"#, "joints").unwrap_or_default();
+    assert_eq!(rest, br#"{"id":"[","joints": []}"#);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&values), bits(&[1.0, -0.0, 2.5e-3]));
     // Taken: the array is replaced by `[]`, the rest kept byte for byte.
     let (rest, rows) = split_rows(
         br#" { "a" : "x\"]" , "configurations" : [ [1, -2.5e-3] , [] ] , "b":0}"#,
@@ -263,18 +319,28 @@ fn what_the_fast_path_leaves_to_the_plain_parse() {
 
 #[test]
 fn digits_stop_at_the_first_non_digit_eight_at_a_time_or_one_by_one() {
-    // Every byte value at every offset of a 20-byte run of digits: where the
-    // run stops, and the run read as an integer after a value already read.
-    let run = b"31415926535897932384";
-    for at in 0..20 {
-        for c in 0..=255u8 {
-            let mut b = run.to_vec();
-            b[at] = c;
-            let end = if c.is_ascii_digit() { 20 } else { at };
-            let value = b[..end].iter().fold(7u64, |v, d| {
-                v.wrapping_mul(10).wrapping_add(u64::from(d - b'0'))
-            });
-            assert_eq!(super::digits(&b, 0, 7), (value, end), "byte {c} at {at}");
+    // Every byte value at every offset of runs of digits of several lengths
+    // (shorter and longer than the two words the fraction is read in): where
+    // the run stops, and the run read as an integer after a value already
+    // read, by both readers.
+    for len in [7, 10, 16, 17, 20, 26] {
+        let run = &b"31415926535897932384626433"[..len];
+        for at in 0..len {
+            for c in 0..=255u8 {
+                let mut b = run.to_vec();
+                b[at] = c;
+                let end = if c.is_ascii_digit() { len } else { at };
+                let value = b[..end].iter().fold(7u64, |v, d| {
+                    v.wrapping_mul(10).wrapping_add(u64::from(d - b'0'))
+                });
+                let want = (value, end);
+                assert_eq!(super::digits(&b, 0, 7), want, "byte {c} at {at} of {len}");
+                assert_eq!(
+                    super::fraction_digits(&b, 0, 7),
+                    want,
+                    "fraction: byte {c} at {at} of {len}"
+                );
+            }
         }
     }
 }
