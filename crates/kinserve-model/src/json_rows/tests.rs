@@ -9,23 +9,15 @@ use super::{parse_json_rows, parse_json_values, split_rows, split_values};
 use crate::json::parse_json;
 use crate::requests::Configurations;
 
+/// A batch body (`configurations`) or one with a joint vector (`joints`, as
+/// the WebSocket messages have), with other members around the array.
 #[derive(Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 struct Body {
-    configurations: Configurations,
     #[serde(default)]
-    angle_unit: Option<String>,
+    configurations: Option<Configurations>,
     #[serde(default)]
-    check_limits: Option<bool>,
-    #[serde(default)]
-    extra: Option<serde_json::Value>,
-}
-
-/// A body with one joint vector, as the WebSocket messages have.
-#[derive(Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-struct JointsBody {
-    joints: Vec<f64>,
+    joints: Option<Vec<f64>>,
     #[serde(default)]
     angle_unit: Option<String>,
     #[serde(default)]
@@ -42,29 +34,26 @@ fn pick<'a>(r: &mut SplitMix64, items: &[&'a str]) -> &'a str {
 /// Parses `bytes` both ways (as a batch body, or as a joint vector body when
 /// it names `joints`) and checks they agree; true if both succeeded.
 fn agree(bytes: &[u8]) -> bool {
-    if bytes.windows(8).any(|w| w == b"\"joints\"") {
-        let fast = parse_json_values(bytes, "joints", |b: &mut JointsBody| &mut b.joints);
-        return agree_with(bytes, fast, |b| &b.joints);
-    }
-    let fast = parse_json_rows(bytes, "configurations", |b: &mut Body| {
-        &mut b.configurations
-    });
-    agree_with(bytes, fast, |b| &b.configurations.values)
-}
-
-/// `fast` against the plain parse of `bytes`, the numbers `values` picks
-/// compared bit for bit.
-fn agree_with<T: serde::de::DeserializeOwned + PartialEq + std::fmt::Debug>(
-    bytes: &[u8],
-    fast: crate::error::Result<T>,
-    values: impl Fn(&T) -> &Vec<f64>,
-) -> bool {
-    let plain = parse_json::<T>(bytes);
+    let fast = if bytes.windows(8).any(|w| w == b"\"joints\"") {
+        parse_json_values(bytes, "joints", |b: &mut Body| {
+            b.joints.get_or_insert_with(Vec::new)
+        })
+    } else {
+        parse_json_rows(bytes, "configurations", |b: &mut Body| {
+            b.configurations.get_or_insert_with(Configurations::default)
+        })
+    };
+    let plain = parse_json::<Body>(bytes);
     let text = String::from_utf8_lossy(bytes);
     match (fast, plain) {
         (Ok(f), Ok(p)) => {
-            let bits = |v: &Vec<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(values(&f)), bits(values(&p)), "values of {text}");
+            let bits = |b: &Body| {
+                let rows = b.configurations.iter().flat_map(|c| &c.values);
+                rows.chain(b.joints.iter().flatten())
+                    .map(|x| x.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&f), bits(&p), "values of {text}");
             assert_eq!(f, p, "{text}");
             true
         }
