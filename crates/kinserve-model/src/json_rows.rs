@@ -6,9 +6,11 @@
 //! with `float_roundtrip`), then hands it to a visitor: on a 10,000-row batch
 //! that was about 40 % of the server's time for the request. Here the array
 //! of arrays is read by a strict scanner of JSON's number grammar into
-//! [`Configurations`] (each number converted by `fast-float2`, a port of
-//! fast_float's correctly rounded Eisel–Lemire conversion, so the value is the
-//! same bit for bit as serde_json's with `float_roundtrip`),
+//! [`Configurations`] (each number correctly rounded: its digits become an
+//! integer as they are scanned and [`decimal`] converts that integer and its
+//! power of ten by Clinger's fast path or fast_float's Eisel–Lemire
+//! algorithm, `fast-float2` the rare rest; so the value is the same bit for
+//! bit as serde_json's with `float_roundtrip`),
 //! and the rest of the body — with `[]` in place of the array — is parsed
 //! by [`parse_json`] as before, then the rows are put in.
 //!
