@@ -53,12 +53,22 @@ pub fn parse_json_rows<T: DeserializeOwned>(
     key: &str,
     rows: impl FnOnce(&mut T) -> &mut Configurations,
 ) -> Result<T> {
-    // The rebuilt body by serde alone: a failure here goes to the plain
-    // parse of the original, which gives the error (with its field path).
-    if let Some((rest, found)) = split_rows(bytes, key)
+    parse_split(bytes, split_rows(bytes, key), rows)
+}
+
+/// `bytes` parsed from `split` (the body with the array replaced by `[]`
+/// and what the fast scanner read of it), which `put` says where to put;
+/// the plain parse of `bytes` when there is no split or the rebuilt body
+/// does not parse (that parse gives the error, with its field path).
+fn parse_split<T: DeserializeOwned, V>(
+    bytes: &[u8],
+    split: Option<(Vec<u8>, V)>,
+    put: impl FnOnce(&mut T) -> &mut V,
+) -> Result<T> {
+    if let Some((rest, found)) = split
         && let Ok(mut value) = serde_json::from_slice::<T>(&rest)
     {
-        *rows(&mut value) = found;
+        *put(&mut value) = found;
         return Ok(value);
     }
     parse_json(bytes)
@@ -102,14 +112,7 @@ pub fn parse_json_values<T: DeserializeOwned>(
     key: &str,
     values: impl FnOnce(&mut T) -> &mut Vec<f64>,
 ) -> Result<T> {
-    // As in `parse_json_rows`: a failure goes to the plain parse.
-    if let Some((rest, found)) = split_values(bytes, key)
-        && let Ok(mut value) = serde_json::from_slice::<T>(&rest)
-    {
-        *values(&mut value) = found;
-        return Ok(value);
-    }
-    parse_json(bytes)
+    parse_split(bytes, split_values(bytes, key), values)
 }
 
 /// [`split_rows`] for an array of numbers: the body with the array under
