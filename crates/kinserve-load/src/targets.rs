@@ -12,7 +12,7 @@ mod codec;
 use super::{ConfigPool, ConfigSource, Plan, Tally, Target, verify_pose};
 use codec::{
     BatchBody, Poses, Reply, SingleBody, WsMessage, decode_rest, decode_ws, grpc_batch, grpc_poses,
-    rest_packed,
+    json_body, rest_packed,
 };
 use kinserve_api::pb;
 use kinserve_api::pb::kinematics_service_client::KinematicsServiceClient;
@@ -166,10 +166,13 @@ async fn unary_worker(
                 let (url, body) = if args.target == Target::Rest {
                     (
                         format!("http://{}/v1/robots/{}/fk", args.http_addr, args.robot),
-                        serde_json::to_vec(&SingleBody {
-                            joints: q,
-                            pose_format,
-                        }),
+                        json_body(
+                            &SingleBody {
+                                joints: q,
+                                pose_format,
+                            },
+                            256,
+                        ),
                     )
                 } else {
                     let configurations: Vec<&[f64]> = q.chunks(dof.max(1)).collect();
@@ -178,10 +181,14 @@ async fn unary_worker(
                             "http://{}/v1/robots/{}/fk/batch",
                             args.http_addr, args.robot
                         ),
-                        serde_json::to_vec(&BatchBody {
-                            configurations,
-                            pose_format,
-                        }),
+                        // 17 significant digits, sign, point, exponent and comma.
+                        json_body(
+                            &BatchBody {
+                                configurations,
+                                pose_format,
+                            },
+                            q.len() * 26 + 256,
+                        ),
                     )
                 };
                 let body = body.map_err(|e| e.to_string())?;
@@ -195,7 +202,6 @@ async fn unary_worker(
                         // which shares the machine with the server).
                         let bytes = r.bytes().await.unwrap_or_default();
                         decode_rest(&bytes, args.target == Target::RestBatch, args.pose_format)
-                            .map(Poses::Each)
                     }
                     Ok(r) => Err(format!("http_{}", r.status().as_u16())),
                     Err(_) => Err("transport".into()),

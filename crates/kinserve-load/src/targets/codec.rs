@@ -93,30 +93,59 @@ pub(super) fn field_of<T>(format: PoseFormat, matrix: Option<T>, position: Optio
     }
 }
 
+/// `value` as JSON in a buffer of `capacity` bytes to start with: a batch
+/// body written into a growing vector cost the generator fresh pages at
+/// every doubling (page faults were a third of its time on 10,000-pose
+/// JSON batches).
+pub(super) fn json_body<T: serde::Serialize>(
+    value: &T,
+    capacity: usize,
+) -> serde_json::Result<Vec<u8>> {
+    let mut body = Vec::with_capacity(capacity);
+    serde_json::to_writer(&mut body, value)?;
+    Ok(body)
+}
+
 /// The arrays of numbers under the top-level `field` of a JSON body, read
 /// by the scanner the server reads batch bodies with
 /// ([`kinserve_model::split_rows`]), if it takes them and the rest of the
-/// body is valid JSON; `None` sends the caller to serde.
-pub(super) fn fast_rows(bytes: &[u8], field: &str) -> Option<Vec<Vec<f64>>> {
+/// body is valid JSON; `None` sends the caller to serde. Rows of `stride`
+/// numbers each stay one flat vector ([`Poses::Packed`], no vector per
+/// pose); rows of other lengths are kept apart, so a short row is still
+/// seen as one.
+pub(super) fn fast_rows(bytes: &[u8], field: &str, stride: usize) -> Option<Poses> {
     let (rest, rows) = kinserve_model::split_rows(bytes, field)?;
     serde_json::from_slice::<serde::de::IgnoredAny>(&rest).ok()?;
+    if rows.lens.iter().all(|&n| n as usize == stride) {
+        return Some(Poses::Packed {
+            values: rows.values,
+            stride,
+        });
+    }
     let mut values = rows.values.as_slice();
-    rows.lens
+    let each = rows
+        .lens
         .iter()
         .map(|&n| {
             let (row, tail) = values.split_at_checked(n as usize)?;
             values = tail;
             Some(row.to_vec())
         })
-        .collect()
+        .collect::<Option<_>>()?;
+    Some(Poses::Each(each))
 }
 
 /// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
-pub(super) fn decode_rest(
-    bytes: &[u8],
-    batch: bool,
-    format: PoseFormat,
-) -> Result<Vec<Vec<f64>>, String> {
+pub(super) fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Poses, String> {
+    if batch && format != PoseFormat::Full {
+        let (field, stride) = match format {
+            PoseFormat::Position => ("positions", 3),
+            _ => ("matrices", 12),
+        };
+        if let Some(poses) = fast_rows(bytes, field, stride) {
+            return Ok(poses);
+        }
+    }
     let decoded = match (format, batch) {
         (PoseFormat::Full, false) => {
             serde_json::from_slice::<SingleReply>(bytes).map(|v| Some(vec![flat(&v.pose.matrix)]))
@@ -125,17 +154,11 @@ pub(super) fn decode_rest(
             .map(|v| Some(v.poses.iter().map(|p| flat(&p.matrix)).collect())),
         (_, false) => Ok(compact_single::<CompactSingleReply>(bytes, format)
             .and_then(|v| field_of(format, v.matrix, v.position).map(|p| vec![p]))),
-        (_, true) => {
-            let field = field_of(format, Some("matrices"), Some("positions")).unwrap_or_default();
-            if let Some(poses) = fast_rows(bytes, field) {
-                return Ok(poses);
-            }
-            serde_json::from_slice::<CompactBatchReply>(bytes)
-                .map(|v| field_of(format, v.matrices, v.positions))
-        }
+        (_, true) => serde_json::from_slice::<CompactBatchReply>(bytes)
+            .map(|v| field_of(format, v.matrices, v.positions)),
     };
     match decoded {
-        Ok(Some(poses)) => Ok(poses),
+        Ok(Some(poses)) => Ok(Poses::Each(poses)),
         _ => Err("decode".to_string()),
     }
 }
@@ -377,28 +400,41 @@ pub(super) fn flat(m: &[[f64; 4]; 4]) -> Vec<f64> {
 mod tests {
     use super::*;
 
+    /// Each pose's numbers, however they are held.
+    fn rows(poses: &Poses) -> Vec<Vec<f64>> {
+        poses.iter().map(<[f64]>::to_vec).collect()
+    }
+
     #[test]
     fn rest_replies_are_read_from_the_field_of_their_format() {
         let single = br#"{"robot":"r","length_unit":"m","matrix":[1,2,3,4,5,6,7,8,9,10,11,12]}"#;
         let got = decode_rest(single, false, PoseFormat::Matrix).unwrap();
-        assert_eq!(got, vec![(1..=12).map(f64::from).collect::<Vec<_>>()]);
+        assert_eq!(
+            rows(&got),
+            vec![(1..=12).map(f64::from).collect::<Vec<_>>()]
+        );
         let batch = br#"{"robot":"r","length_unit":"m","positions":[[1,2,3],[4,5,6]]}"#;
         let got = decode_rest(batch, true, PoseFormat::Position).unwrap();
-        assert_eq!(got, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
+        assert_eq!(rows(&got), vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
         // The shape before the compact fields (numbers in `pose`/`poses`)
         // and a field of another format are not an answer.
         assert!(decode_rest(br#"{"pose":[1,2,3]}"#, false, PoseFormat::Position).is_err());
         assert!(decode_rest(br#"{"poses":[[1,2,3]]}"#, true, PoseFormat::Position).is_err());
         assert!(decode_rest(batch, true, PoseFormat::Matrix).is_err());
         // The batch field is read by the fast scanner, and only when the rest
-        // of the body is valid JSON (a trailing comma is not).
-        assert_eq!(
-            fast_rows(batch, "positions"),
-            Some(vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]])
-        );
+        // of the body is valid JSON (a trailing comma is not); rows of the
+        // format's length stay one flat vector.
+        let fast = fast_rows(batch, "positions", 3).unwrap();
+        assert!(matches!(fast, Poses::Packed { stride: 3, .. }));
+        assert_eq!(rows(&fast), vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
         let trailing = br#"{"positions":[[1,2,3]],}"#;
-        assert_eq!(fast_rows(trailing, "positions"), None);
+        assert!(fast_rows(trailing, "positions", 3).is_none());
         assert!(decode_rest(trailing, true, PoseFormat::Position).is_err());
+        // A short or long row is kept as it came (the caller's checks see it),
+        // not spread over the rows after it.
+        let uneven = br#"{"positions":[[1,2],[3,4,5,6]]}"#;
+        let got = decode_rest(uneven, true, PoseFormat::Position).unwrap();
+        assert_eq!(rows(&got), vec![vec![1.0, 2.0], vec![3.0, 4.0, 5.0, 6.0]]);
     }
 
     #[test]
