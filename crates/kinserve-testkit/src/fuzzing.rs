@@ -11,7 +11,9 @@
 //!   the model round-trips through its JSON form (as the registry stores it).
 //! * [`check_fk_request`]: the REST FK body, the batch body and the WebSocket
 //!   message, parsed as the server parses them and evaluated against a few
-//!   built-in robots, either fail with a client error (4xx) or give finite,
+//!   built-in robots (the batch and WebSocket bodies by the fast number
+//!   scanner and by serde, which must agree bit for bit or fail alike),
+//!   either fail with a client error (4xx) or give finite,
 //!   rigid poses that serialise to JSON numbers (never `null`); a batch
 //!   computed in each pose format the way binary and gRPC answers are (the
 //!   kernel writing the compact numbers) holds the transforms' numbers bit
@@ -193,6 +195,31 @@ fn parse_batch(bytes: &[u8]) -> Result<FkBatchRequest, kinserve_model::ModelErro
     fast
 }
 
+/// `bytes` as a WebSocket message, read as the handler reads it (the fast
+/// path of `parse_json_values` for `joints`; a top-level array is refused
+/// before it), after checking that the plain parse gives the same message
+/// (every number bit for bit, as in [`parse_batch`]) or the same error.
+fn parse_ws(bytes: &[u8]) -> Result<WsRequest, kinserve_model::ModelError> {
+    let plain = parse_json::<WsRequest>(bytes);
+    let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
+    if first == Some(&b'[') {
+        return plain;
+    }
+    let fast = kinserve_model::parse_json_values(bytes, "joints", |r: &mut WsRequest| {
+        r.joints.get_or_insert_with(Vec::new)
+    });
+    match (&fast, &plain) {
+        (Ok(f), Ok(p)) => assert_eq!(
+            format!("{f:?}"),
+            format!("{p:?}"),
+            "fast and plain parse of a WebSocket message differ"
+        ),
+        (Err(f), Err(p)) => assert_eq!(f, p, "fast and plain parse fail differently"),
+        _ => panic!("fast parse {fast:?}, plain parse {plain:?}"),
+    }
+    fast
+}
+
 /// Parses `bytes` as a REST FK body, a REST batch body and a WebSocket FK
 /// message, and evaluates whatever parses against a few built-in robots the
 /// way the handlers do. Panics if a property is violated.
@@ -215,7 +242,7 @@ pub fn check_fk_request(bytes: &[u8]) {
         }
         Err(e) => assert_client_error(&Error::from(e), "FkBatchRequest"),
     }
-    match parse_json::<WsRequest>(bytes) {
+    match parse_ws(bytes) {
         Ok(req) => {
             // An IK message is the IK check's business (check_ik_request).
             if let Ok(StreamOp::Fk { fk, .. }) = StreamOp::try_from(req) {
