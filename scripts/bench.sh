@@ -10,7 +10,11 @@
 # kinserve-load for every target, wrk against REST FK and /healthz when wrk is
 # installed (Debian: apt-get install wrk), and records the server's RSS
 # (idle, and peak over the whole run, from /proc/PID/status). Ends with the
-# issue-15 targets (ratios computed from rows measured in this run).
+# issue-15 targets (ratios computed from rows measured in this run) and the
+# CPU split behind the per-request ratios: the server's and the load
+# generator's CPU per request or message (they share the cores, so a ratio
+# of two rows is a ratio of both processes' CPU) with what each goal allows,
+# then TLS beside plain.
 #   BIN_DIR=/tmp/old scripts/bench.sh   # binaries of another build (no cargo build;
 #                                       # an old kinserve-load without --pose-format
 #                                       # runs every row in the full format)
@@ -60,13 +64,38 @@ env KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data "$
 pid=$!
 tls_pid=""
 tls_dir=""
-trap 'kill $pid $tls_pid 2>/dev/null; wait $pid $tls_pid 2>/dev/null; rm -rf "$data" "$log" $tls_dir' EXIT
+trap 'kill $pid $tls_pid 2>/dev/null; wait $pid $tls_pid 2>/dev/null; rm -rf "$data" "$log" $tls_dir ${split_log:-} ${split_times:-}' EXIT
 wait_ready "$log" "http://$HTTP/readyz"
 sleep 1
 idle_rss=$(awk '/VmRSS/ {print $2}' /proc/$pid/status)
 
 load() { "$BIN_DIR/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robot "$ROBOT" \
   --duration "$DURATION" --warmup "$WARMUP" "$@"; }
+
+# The CPU split of a row: the server and the load generator share the two
+# cores, so every end-to-end ratio is a ratio of their CPU together.
+# server_cpu: CPU seconds (user + system) the server has used so far;
+# children_cpu: those of this shell's finished children (the generator) in $children_s.
+server_cpu() { awk -v hz="$(getconf CLK_TCK)" '{printf "%.2f", ($14 + $15) / hz}' "/proc/$pid/stat"; }
+# (`times` must run in the shell itself, not in a pipe or `$(…)`, whose
+# subshell has no finished children: it writes to a file read afterwards.)
+children_cpu() {
+  times >"$split_times"
+  children_s=$(awk 'NR == 2 {s = 0; for (i = 1; i <= 2; i++) {split($i, p, /[ms]/); s += p[1] * 60 + p[2]} printf "%.3f", s}' "$split_times")
+}
+split_log=$(mktemp)
+split_times=$(mktemp)
+# run_split NAME CMD...: runs CMD (its standard output passes through) and
+# appends "NAME server_s generator_s" to $split_log, both over the whole
+# command (a kinserve-load row's warm-up included).
+run_split() {
+  local name=$1 s0 c0 s1
+  shift
+  s0=$(server_cpu); children_cpu; c0=$children_s
+  "$@"
+  s1=$(server_cpu); children_cpu
+  echo "$name $s1 $s0 $children_s $c0" >>"$split_log"
+}
 
 # TLS beside plain (issue 27): a second server on the same settings with a
 # throwaway certificate (openssl, valid one day), and rounds alternating the
@@ -173,13 +202,21 @@ done 2>&1
 
 echo
 echo "# streams and health at 16 connections, compact format (the issue-15 ratios)"
-rate() { load "$@" --json | python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))'; }
+# rate NAME ARGS...: the row's poses/s (or requests/s); its CPU split and
+# answered count go to $split_log.
+rate() {
+  local name=$1 json
+  shift
+  json=$(run_split "$name" load "$@" --json)
+  echo "$name answered $(echo "$json" | python3 -c 'import json,sys; print(json.load(sys.stdin)["answered"])')" >>"$split_log"
+  echo "$json" | python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))'
+}
 f16=matrix; [ "$formats" = full ] && f16=full
 fmt16=(); [ "$f16" = full ] || fmt16=(--pose-format "$f16")
-grpc_health16=$(rate --target grpc-health --concurrency 16)
-rest16=$(rate --target rest --concurrency 16 "${fmt16[@]}")
-grpc_stream16=$(rate --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}")
-ws16=$(rate --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}")
+grpc_health16=$(rate grpc-health --target grpc-health --concurrency 16)
+rest16=$(rate rest --target rest --concurrency 16 "${fmt16[@]}")
+grpc_stream16=$(rate grpc-stream --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}")
+ws16=$(rate ws --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}")
 echo "grpc-health $grpc_health16 req/s; rest ($f16) $rest16 poses/s; grpc-stream ($f16) $grpc_stream16 poses/s; ws ($f16) $ws16 poses/s"
 # The same streams with PER_MESSAGE configurations per message
 # (`configurations`, answered with as many poses): what a client that can
@@ -187,8 +224,8 @@ echo "grpc-health $grpc_health16 req/s; rest ($f16) $rest16 poses/s; grpc-stream
 PER_MESSAGE=${PER_MESSAGE:-16}
 per_message=(); "$BIN_DIR/kinserve-load" --help | grep -q -- --per-message && per_message=(--per-message "$PER_MESSAGE")
 if [ ${#per_message[@]} -gt 0 ]; then
-  grpc_stream16_many=$(rate --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
-  ws16_many=$(rate --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
+  grpc_stream16_many=$(rate grpc-stream-many --target grpc-stream --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
+  ws16_many=$(rate ws-many --target ws --concurrency 16 --pipeline 32 "${fmt16[@]}" "${per_message[@]}")
   echo "$PER_MESSAGE configurations per message: grpc-stream ($f16) $grpc_stream16_many poses/s; ws ($f16) $ws16_many poses/s"
 else
   grpc_stream16_many=nan; ws16_many=nan
@@ -212,8 +249,10 @@ if command -v wrk >/dev/null; then
   # connections WRK_ROUNDS more times; the targets use the median pair ratio.
   wrk_pairs=""
   for _ in $(seq "${WRK_ROUNDS:-3}"); do
-    h=$(wrk -t2 -c64 -d"$DURATION" --latency "http://$HTTP/healthz")
-    f=$(wrk -t2 -c64 -d"$DURATION" --latency -s "$lua" "http://$HTTP/v1/robots/$ROBOT/fk")
+    h=$(run_split wrk-healthz wrk -t2 -c64 -d"$DURATION" --latency "http://$HTTP/healthz")
+    f=$(run_split wrk-fk wrk -t2 -c64 -d"$DURATION" --latency -s "$lua" "http://$HTTP/v1/robots/$ROBOT/fk")
+    echo "wrk-healthz answered $(echo "$h" | awk '/requests in/ {print $1}')" >>"$split_log"
+    echo "wrk-fk answered $(echo "$f" | awk '/requests in/ {print $1}')" >>"$split_log"
     # The latency distribution's own line (`99%` as its first field): a
     # thread-stats line whose spread column ends in `99%` (85.99%) is not it.
     pair=$(printf '%s:%s:%s:%s' "$(echo "$h" | awk '/Requests\/sec/ {print $2}')" "$(echo "$f" | awk '/Requests\/sec/ {print $2}')" \
@@ -284,5 +323,43 @@ rows = [
 ]
 for name, goal, got in rows:
     print(f"{name:<46} goal {goal:<7} measured {got}")
+PY
+
+echo
+echo "# CPU per request or message, server and load generator (this run; kinserve-load rows over warm-up and run, counted at the run's rate)"
+python3 - "$split_log" "$DURATION" "$WARMUP" <<'PY'
+import sys
+from collections import defaultdict
+def secs(v):
+    for unit, k in (("ms", 1e-3), ("s", 1.0), ("m", 60.0)):
+        if v.endswith(unit):
+            return float(v[: -len(unit)]) * k
+    return float(v)
+duration, warmup = secs(sys.argv[2]), secs(sys.argv[3])
+server, gen, count = defaultdict(float), defaultdict(float), defaultdict(float)
+for line in open(sys.argv[1]):
+    f = line.split()
+    if len(f) == 3 and f[1] == "answered" and f[2]:
+        # wrk counts its whole run; kinserve-load only after the warm-up.
+        scale = 1.0 if f[0].startswith("wrk") else (duration + warmup) / duration
+        count[f[0]] += float(f[2]) * scale
+    elif len(f) == 5:
+        server[f[0]] += float(f[1]) - float(f[2])
+        gen[f[0]] += float(f[3]) - float(f[4])
+per = {}
+for name in sorted(count):
+    n = count[name]
+    if n <= 0:
+        continue
+    s, g = server[name] * 1e6 / n, gen[name] * 1e6 / n
+    per[name] = s + g
+    print(f"{name:<17} server {s:7.2f} µs  generator {g:7.2f} µs  together {s + g:7.2f} µs")
+# What a goal on a ratio of two rows allows the row below it, both
+# processes together (they share the cores).
+for row, base, goal, what in (("grpc-stream", "grpc-health", 20, "gRPC stream ÷ health >= 20"),
+                              ("ws", "rest", 8, "WebSocket ÷ REST FK >= 8"),
+                              ("wrk-fk", "wrk-healthz", 0.9, "REST FK ÷ /healthz >= 0.9 (wrk)")):
+    if row in per and base in per:
+        print(f"{what}: a {row} unit may cost both {per[base] / goal:.2f} µs; it costs {per[row]:.2f}")
 PY
 tls_vs_plain
