@@ -174,32 +174,19 @@ pub fn check_model(bytes: &[u8]) {
 }
 
 /// `bytes` as a REST FK batch body, read as the handler reads it (the fast
-/// path of `parse_json_rows`), after checking that the plain parse gives the
-/// same request (every number bit for bit: `Debug` writes the shortest
-/// round-trip form and the sign of zero) or the same error.
-fn parse_batch(bytes: &[u8]) -> Result<FkBatchRequest, kinserve_model::ModelError> {
+/// path of `parse_json_rows`), checked against the plain parse ([`same_parse`]).
+fn parse_batch(bytes: &[u8]) -> Result<FkBatchRequest, ModelError> {
     let fast =
         kinserve_model::parse_json_rows(bytes, "configurations", |r: &mut FkBatchRequest| {
             &mut r.configurations
         });
-    let plain = parse_json::<FkBatchRequest>(bytes);
-    match (&fast, &plain) {
-        (Ok(f), Ok(p)) => assert_eq!(
-            format!("{f:?}"),
-            format!("{p:?}"),
-            "fast and plain parse differ"
-        ),
-        (Err(f), Err(p)) => assert_eq!(f, p, "fast and plain parse fail differently"),
-        _ => panic!("fast parse {fast:?}, plain parse {plain:?}"),
-    }
-    fast
+    same_parse(fast, parse_json::<FkBatchRequest>(bytes), "batch body")
 }
 
 /// `bytes` as a WebSocket message, read as the handler reads it (the fast
 /// path of `parse_json_values` for `joints`; a top-level array is refused
-/// before it), after checking that the plain parse gives the same message
-/// (every number bit for bit, as in [`parse_batch`]) or the same error.
-fn parse_ws(bytes: &[u8]) -> Result<WsRequest, kinserve_model::ModelError> {
+/// before it), checked against the plain parse ([`same_parse`]).
+fn parse_ws(bytes: &[u8]) -> Result<WsRequest, ModelError> {
     let plain = parse_json::<WsRequest>(bytes);
     let first = bytes.iter().find(|b| !b.is_ascii_whitespace());
     if first == Some(&b'[') {
@@ -208,14 +195,25 @@ fn parse_ws(bytes: &[u8]) -> Result<WsRequest, kinserve_model::ModelError> {
     let fast = kinserve_model::parse_json_values(bytes, "joints", |r: &mut WsRequest| {
         r.joints.get_or_insert_with(Vec::new)
     });
+    same_parse(fast, plain, "WebSocket message")
+}
+
+/// The fast parse `fast` of a `what`, after checking that the plain parse
+/// `plain` gives the same value (every number bit for bit: `Debug` writes
+/// the shortest round-trip form and the sign of zero) or the same error.
+fn same_parse<T: std::fmt::Debug>(
+    fast: Result<T, ModelError>,
+    plain: Result<T, ModelError>,
+    what: &str,
+) -> Result<T, ModelError> {
     match (&fast, &plain) {
         (Ok(f), Ok(p)) => assert_eq!(
             format!("{f:?}"),
             format!("{p:?}"),
-            "fast and plain parse of a WebSocket message differ"
+            "fast and plain parse of a {what} differ"
         ),
-        (Err(f), Err(p)) => assert_eq!(f, p, "fast and plain parse fail differently"),
-        _ => panic!("fast parse {fast:?}, plain parse {plain:?}"),
+        (Err(f), Err(p)) => assert_eq!(f, p, "fast and plain parse of a {what} fail differently"),
+        _ => panic!("fast parse {fast:?}, plain parse {plain:?} of a {what}"),
     }
     fast
 }
