@@ -205,11 +205,12 @@ echo "# streams and health at 16 connections, compact format (the issue-15 ratio
 # rate NAME ARGS...: the row's poses/s (or requests/s); its CPU split and
 # answered count go to $split_log.
 rate() {
-  local name=$1 json
+  local name=$1 answered per_s
   shift
-  json=$(run_split "$name" load "$@" --json)
-  echo "$name answered $(echo "$json" | python3 -c 'import json,sys; print(json.load(sys.stdin)["answered"])')" >>"$split_log"
-  echo "$json" | python3 -c 'import json,sys; r=json.load(sys.stdin); print(round(r["poses_per_s"] or r["requests_per_s"]))'
+  read -r answered per_s < <(run_split "$name" load "$@" --json |
+    python3 -c 'import json,sys; r=json.load(sys.stdin); print(r["answered"], round(r["poses_per_s"] or r["requests_per_s"]))')
+  echo "$name answered $answered" >>"$split_log"
+  echo "$per_s"
 }
 f16=matrix; [ "$formats" = full ] && f16=full
 fmt16=(); [ "$f16" = full ] || fmt16=(--pose-format "$f16")

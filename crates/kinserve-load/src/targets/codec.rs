@@ -137,14 +137,11 @@ pub(super) fn fast_rows(bytes: &[u8], field: &str, stride: usize) -> Option<Pose
 
 /// The numbers of each pose of a REST reply body (the matrix's 16 for `full`).
 pub(super) fn decode_rest(bytes: &[u8], batch: bool, format: PoseFormat) -> Result<Poses, String> {
-    if batch && format != PoseFormat::Full {
-        let (field, stride) = match format {
-            PoseFormat::Position => ("positions", 3),
-            _ => ("matrices", 12),
-        };
-        if let Some(poses) = fast_rows(bytes, field, stride) {
-            return Ok(poses);
-        }
+    if batch
+        && let Some(field) = field_of(format, Some("matrices"), Some("positions"))
+        && let Some(poses) = fast_rows(bytes, field, format.stride())
+    {
+        return Ok(poses);
     }
     let decoded = match (format, batch) {
         (PoseFormat::Full, false) => {
