@@ -89,6 +89,29 @@ pub(crate) trait Lane8: Lane {
     unsafe fn load8(a: &[f64; 8]) -> Self;
     /// The eight doubles.
     fn store8(self) -> [f64; 8];
+    /// Eight configurations of `dof` joint values each (`qb`, one after the
+    /// other) as joint-major rows: `out[j][k]` is joint `j0 + j` of
+    /// configuration `k`, for the joints `j0..min(j0 + 8, dof)` (the rows
+    /// beyond are zero). The default reads element by element; [`Zmm`]
+    /// transposes eight masked row loads in registers instead of a gather
+    /// per joint (a gather is 8 loads and, on AMD Zen 4, many cycles).
+    ///
+    /// # Safety
+    /// The CPU must support the target features the type's operations use.
+    ///
+    /// # Panics
+    /// If `qb` is shorter than `8 · dof` or `j0 ≥ dof`.
+    #[inline(always)]
+    unsafe fn load_joints(qb: &[f64], dof: usize, j0: usize) -> [[f64; 8]; 8] {
+        let mut t = [[0.0; 8]; 8];
+        for j in 0..(dof - j0).min(8) {
+            for k in 0..8 {
+                t[j][k] = qb[k * dof + j0 + j];
+            }
+        }
+        t
+    }
+
     /// Writes eight poses: lane `k` of `m[r][c]` is row `r`, column `c` of
     /// pose `k`'s top three rows (column 3 the translation). Out of the
     /// vectors once, then pose by pose.
@@ -194,7 +217,8 @@ mod ymm {
     use std::arch::x86_64::{
         __m256d, _mm256_blend_pd, _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_loadu_pd,
         _mm256_mul_pd, _mm256_permute_pd, _mm256_permute2f128_pd, _mm256_permute4x64_pd,
-        _mm256_set1_pd, _mm256_storeu_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd, _mm256_xor_pd,
+        _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_unpackhi_pd,
+        _mm256_unpacklo_pd, _mm256_xor_pd,
     };
 
     /// Four doubles in one AVX register, with fused multiply-add.
@@ -337,6 +361,43 @@ mod ymm {
     }
 
     impl super::Lane8 for Ymm2 {
+        /// Two masked AVX loads per configuration, then four 4 × 4
+        /// transposes in registers (see [`super::Lane8::load_joints`]).
+        #[inline(always)]
+        unsafe fn load_joints(qb: &[f64], dof: usize, j0: usize) -> [[f64; 8]; 8] {
+            assert!(
+                j0 < dof && qb.len() >= 8 * dof,
+                "eight configurations of dof values"
+            );
+            // SAFETY: the caller guarantees AVX2; `masked_load8` reads only
+            // inside each configuration's slice.
+            unsafe {
+                let mut rows = [[_mm256_setzero_pd(); 2]; 8];
+                for (k, row) in rows.iter_mut().enumerate() {
+                    let v = super::masked_load8(&qb[k * dof..(k + 1) * dof], j0);
+                    *row = std::mem::transmute::<[f64; 8], [__m256d; 2]>(v);
+                }
+                let mut out = [[_mm256_setzero_pd(); 2]; 8];
+                for half in 0..2 {
+                    // Configurations 4·half.. (lanes), joints 4·g.. (rows of `out`).
+                    for g in 0..2 {
+                        // (No closure: it would not inherit the target features.)
+                        let b = 4 * half;
+                        let r = [rows[b][g], rows[b + 1][g], rows[b + 2][g], rows[b + 3][g]];
+                        let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+                        let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+                        let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+                        let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+                        out[4 * g][half] = _mm256_permute2f128_pd::<0x20>(t0, t2);
+                        out[4 * g + 1][half] = _mm256_permute2f128_pd::<0x20>(t1, t3);
+                        out[4 * g + 2][half] = _mm256_permute2f128_pd::<0x31>(t0, t2);
+                        out[4 * g + 3][half] = _mm256_permute2f128_pd::<0x31>(t1, t3);
+                    }
+                }
+                std::mem::transmute::<[[__m256d; 2]; 8], [[f64; 8]; 8]>(out)
+            }
+        }
+
         #[inline(always)]
         unsafe fn load8(a: &[f64; 8]) -> Self {
             let [a0, a1, a2, a3, a4, a5, a6, a7] = *a;
@@ -413,6 +474,27 @@ mod zmm {
             // SAFETY: `a` is 8 writable doubles; a `Zmm` exists only on a CPU with AVX-512F.
             unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) };
             a
+        }
+
+        #[inline(always)]
+        unsafe fn load_joints(qb: &[f64], dof: usize, j0: usize) -> [[f64; 8]; 8] {
+            use std::arch::x86_64::_mm512_maskz_loadu_pd;
+            assert!(
+                j0 < dof && qb.len() >= 8 * dof,
+                "eight configurations of dof values"
+            );
+            let n = (dof - j0).min(8);
+            let mask = ((1u32 << n) - 1) as u8;
+            // SAFETY: the caller guarantees AVX-512F; row `k` reads lanes
+            // `k·dof + j0 .. k·dof + j0 + n`, below `8·dof ≤ qb.len()` (checked
+            // above); masked-off lanes are neither read nor fault.
+            unsafe {
+                let mut rows = [_mm512_setzero_pd(); 8];
+                for (k, row) in rows.iter_mut().enumerate() {
+                    *row = _mm512_maskz_loadu_pd(mask, qb.as_ptr().add(k * dof + j0));
+                }
+                std::mem::transmute::<[__m512d; 8], [[f64; 8]; 8]>(transpose8(rows))
+            }
         }
 
         /// The eight poses as matrix rows, by the same transposes as

@@ -69,6 +69,14 @@ pub(crate) struct Step {
     pub c: Cols,
 }
 
+impl Step {
+    /// Whether the joint is revolute (`pri` is 0, `rev` 1).
+    #[inline(always)]
+    pub(crate) fn is_revolute(&self) -> bool {
+        self.pri == 0.0
+    }
+}
+
 /// Per-lane copies of the step constants for [`CHUNK`] joints, so the joint
 /// angles, sines and cosines of one pose are computed as whole vectors.
 #[derive(Clone, Copy, Debug)]

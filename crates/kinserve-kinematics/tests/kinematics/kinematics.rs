@@ -122,7 +122,7 @@ const FAST_PATH_TOL: f64 = 1e-12;
 fn fast_single_batch_and_frames_match_the_plain_product() {
     let mut rng = Rng(7);
     for convention in [Convention::Standard, Convention::Modified] {
-        for n in [1, 2, 5, 6, 7, 12, 30] {
+        for n in [1, 2, 5, 6, 7, 12, 30, 85] {
             let chain = random_chain(&mut rng, convention, n);
             let dof = chain.dof();
             let count = 37; // not a multiple of the batch block size
