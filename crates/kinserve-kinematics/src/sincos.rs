@@ -2,8 +2,9 @@
 //! compiler vectorises (AVX-512 or AVX2 with FMA when the CPU has them, plain
 //! SSE2 otherwise).
 //!
-//! Method: Cody–Waite reduction by π/2 in three parts, then the Cephes minimax
-//! polynomials for sin and cos on `[-π/4, π/4]`, then a quadrant swap.
+//! Method: Cody–Waite reduction by π/2 in three parts (two fused ones with
+//! FMA), then the Cephes minimax polynomials for sin and cos on `[-π/4, π/4]`
+//! (by Horner's scheme, or Estrin's where latency counts), then a quadrant swap.
 //! For `|x| ≤ POLY_LIMIT` the result is within 2 ulp-ish of `f64::sin_cos`
 //! (the test `matches_std_over_range` bounds the absolute error by 4e-16);
 //! larger or non-finite inputs fall back to `f64::sin_cos` itself, so the
@@ -59,35 +60,61 @@ pub fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 /// Branch-free so that loops over it vectorise; fused multiply-adds when `FMA` (see [`madd`]).
 #[inline(always)]
 pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
+    sincos_poly_core::<FMA, false>(x)
+}
+
+/// π/2 in two parts for the fused reduction: the double nearest π/2 and the
+/// rest (with one rounding, `x − j·PIO2_HI` is exact before it is rounded,
+/// so two parts reach what three reach unfused; the neglected third part is
+/// below 4.4e-34 · |j|).
+const PIO2_HI: f64 = std::f64::consts::FRAC_PI_2;
+const PIO2_LO: f64 = 6.123_233_995_736_766_036_43e-17;
+
+/// The polynomials `p(z) = k0·z⁵ + … + k5` of [`sincos_poly_core`]: by
+/// Horner (five dependent steps, fewest operations: the batch path, bound by
+/// throughput) or by Estrin (three pairs at once, then `z²` and `z⁴`: three
+/// dependent steps, one more multiplication shared by sine and cosine: the
+/// single-pose path, bound by latency).
+#[inline(always)]
+fn poly5<const FMA: bool, const ESTRIN: bool>(k: [f64; 6], z: f64, z2: f64, z4: f64) -> f64 {
+    if ESTRIN {
+        let q0 = madd::<FMA>(k[0], z, k[1]);
+        let q1 = madd::<FMA>(k[2], z, k[3]);
+        let q2 = madd::<FMA>(k[4], z, k[5]);
+        madd::<FMA>(q0, z4, madd::<FMA>(q1, z2, q2))
+    } else {
+        let mut p = k[0];
+        for &c in &k[1..] {
+            p = madd::<FMA>(p, z, c);
+        }
+        p
+    }
+}
+
+/// [`sincos_poly_impl`], its polynomials by Estrin's scheme when `ESTRIN`
+/// (see [`poly5`]). With `FMA` the reduction by π/2 takes two fused steps
+/// instead of three (see [`PIO2_HI`]).
+#[inline(always)]
+pub fn sincos_poly_core<const FMA: bool, const ESTRIN: bool>(x: f64) -> (f64, f64) {
     let t = madd::<FMA>(x, FRAC_2_PI, ROUND_MAGIC);
     let quadrant = t.to_bits();
     let j = t - ROUND_MAGIC;
-    let r = madd::<FMA>(
-        -j,
-        PIO2_3,
-        madd::<FMA>(-j, PIO2_2, madd::<FMA>(-j, PIO2_1, x)),
-    );
+    let r = if FMA {
+        madd::<FMA>(-j, PIO2_LO, madd::<FMA>(-j, PIO2_HI, x))
+    } else {
+        madd::<FMA>(
+            -j,
+            PIO2_3,
+            madd::<FMA>(-j, PIO2_2, madd::<FMA>(-j, PIO2_1, x)),
+        )
+    };
     let z = r * r;
-    let sp = madd::<FMA>(
-        madd::<FMA>(
-            madd::<FMA>(madd::<FMA>(madd::<FMA>(S0, z, S1), z, S2), z, S3),
-            z,
-            S4,
-        ),
-        z,
-        S5,
-    );
+    let z2 = z * z;
+    let z4 = z2 * z2;
+    let sp = poly5::<FMA, ESTRIN>([S0, S1, S2, S3, S4, S5], z, z2, z4);
     let s = madd::<FMA>(r * z, sp, r);
-    let cp = madd::<FMA>(
-        madd::<FMA>(
-            madd::<FMA>(madd::<FMA>(madd::<FMA>(C0, z, C1), z, C2), z, C3),
-            z,
-            C4,
-        ),
-        z,
-        C5,
-    );
-    let c = madd::<FMA>(z * z, cp, madd::<FMA>(-0.5, z, 1.0));
+    let cp = poly5::<FMA, ESTRIN>([C0, C1, C2, C3, C4, C5], z, z2, z4);
+    let c = madd::<FMA>(z2, cp, madd::<FMA>(-0.5, z, 1.0));
     let swap = quadrant & 1 != 0;
     let (s1, c1) = if swap { (c, s) } else { (s, c) };
     // quadrant 0: ( s,  c)  1: ( c, -s)  2: (-s, -c)  3: (-c,  s)
@@ -126,10 +153,16 @@ pub(crate) fn sincos_poly_lanes<const FMA: bool, const L: usize>(
 }
 
 /// Sine and cosine of `L` angles (rad) as whole vectors: the polynomial on every
-/// lane, then `std` for the lanes that need it (see [`needs_std`]) only when one does.
+/// lane (by Estrin's scheme: the single-pose paths wait for it), then `std` for
+/// the lanes that need it (see [`needs_std`]) only when one does.
 #[inline(always)]
 pub(crate) fn sincos_lanes<const FMA: bool, const L: usize>(x: &[f64; L]) -> ([f64; L], [f64; L]) {
-    let (mut s, mut c, any) = sincos_poly_lanes::<FMA, L>(x);
+    let mut s = [0.0; L];
+    let mut c = [0.0; L];
+    for k in 0..L {
+        (s[k], c[k]) = sincos_poly_core::<FMA, true>(x[k]);
+    }
+    let any = x.iter().fold(false, |any, &v| any | needs_std(v));
     if any {
         for k in 0..L {
             if needs_std(x[k]) {

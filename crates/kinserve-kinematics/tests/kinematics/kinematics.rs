@@ -1,7 +1,7 @@
 //! The fast FK paths against the plain product of link matrices, and the
 //! vectorised sine/cosine against `std`.
 
-use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_slice, sincos_slice_with};
+use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_poly_core, sincos_slice, sincos_slice_with};
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, PackedLayout, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
@@ -60,6 +60,56 @@ fn sincos_matches_std_over_range() {
             worst <= SINCOS_ABS_BOUND,
             "{kernel:?}: max abs error {worst:e} > {SINCOS_ABS_BOUND:e}"
         );
+    }
+}
+
+/// Every variant of the polynomial (unfused / fused, Horner / Estrin) within
+/// [`SINCOS_ABS_BOUND`] of `f64::sin_cos` (and 3 ulp where the value is not
+/// near 0), on random angles over the whole range and the hardest
+/// reductions: the doubles nearest large multiples of π/2, where `x − j·π/2`
+/// cancels to a tiny remainder.
+#[test]
+fn every_sincos_variant_matches_std() {
+    let mut rng = Rng(3);
+    let mut xs: Vec<f64> = (0..100_000)
+        .map(|_| rng.range(-POLY_LIMIT, POLY_LIMIT))
+        .collect();
+    xs.extend((0..100_000).map(|_| rng.range(-10.0, 10.0)));
+    for k in (1..63_000).step_by(7).chain(62_000..63_600) {
+        let b = k as f64 * std::f64::consts::FRAC_PI_2;
+        xs.extend([
+            b,
+            -b,
+            f64::from_bits(b.to_bits() + 1),
+            f64::from_bits(b.to_bits() - 1),
+        ]);
+    }
+    xs.retain(|x| x.abs() <= POLY_LIMIT);
+    type Variant = (&'static str, fn(f64) -> (f64, f64));
+    let variants: [Variant; 4] = [
+        ("unfused Horner", sincos_poly_core::<false, false>),
+        ("unfused Estrin", sincos_poly_core::<false, true>),
+        ("fused Horner", sincos_poly_core::<true, false>),
+        ("fused Estrin", sincos_poly_core::<true, true>),
+    ];
+    // Units in the last place between two doubles of the same sign.
+    let ulps = |a: f64, b: f64| (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs();
+    for (name, f) in variants {
+        for &x in &xs {
+            let ((s, c), (es, ec)) = (f(x), x.sin_cos());
+            for (v, e) in [(s, es), (c, ec)] {
+                assert!(
+                    (v - e).abs() <= SINCOS_ABS_BOUND,
+                    "{name}: {x:e} gives {v:e}, std {e:e}"
+                );
+                // Away from the zeros, in relative terms too (a wrong
+                // reduction constant shows here first).
+                assert!(
+                    e.abs() <= 1e-3 || ulps(v, e) <= 3,
+                    "{name}: {x:e} gives {v:e}, std {e:e}"
+                );
+            }
+        }
     }
 }
 
