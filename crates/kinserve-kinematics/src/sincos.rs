@@ -92,8 +92,10 @@ fn poly5<const FMA: bool, const ESTRIN: bool>(k: [f64; 6], z: f64, z2: f64, z4: 
 }
 
 /// [`sincos_poly_impl`], its polynomials by Estrin's scheme when `ESTRIN`
-/// (see [`poly5`]). With `FMA` the reduction by π/2 takes two fused steps
-/// instead of three (see [`PIO2_HI`]).
+/// (three dependent steps instead of Horner's five, one more multiplication:
+/// for paths that wait on the result rather than run many at once). With
+/// `FMA` the reduction by π/2 takes two fused steps (the double nearest π/2,
+/// then the rest) instead of three.
 #[inline(always)]
 pub fn sincos_poly_core<const FMA: bool, const ESTRIN: bool>(x: f64) -> (f64, f64) {
     let t = madd::<FMA>(x, FRAC_2_PI, ROUND_MAGIC);
