@@ -4,7 +4,7 @@
 //!
 //! Method: Cody–Waite reduction by π/2 in three parts (two fused ones with
 //! FMA), then the Cephes minimax polynomials for sin and cos on `[-π/4, π/4]`
-//! (by Horner's scheme, or Estrin's where latency counts), then a quadrant swap.
+//! (by Estrin's scheme), then a quadrant swap.
 //! For `|x| ≤ POLY_LIMIT` the result is within 2 ulp-ish of `f64::sin_cos`
 //! (the test `matches_std_over_range` bounds the absolute error by 4e-16);
 //! larger or non-finite inputs fall back to `f64::sin_cos` itself, so the
@@ -56,48 +56,33 @@ pub fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     if FMA { a.mul_add(b, c) } else { a * b + c }
 }
 
-/// Sine and cosine of one angle (rad) by the polynomial; valid for `|x| ≤ POLY_LIMIT`.
-/// Branch-free so that loops over it vectorise; fused multiply-adds when `FMA` (see [`madd`]).
-#[inline(always)]
-pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
-    sincos_poly_core::<FMA, false>(x)
-}
-
 /// π/2 in two parts for the fused reduction: the double nearest π/2 and the
 /// rest (with one rounding, `x − j·PIO2_HI` is exact before it is rounded,
 /// so two parts reach what three reach unfused; the neglected third part is
-/// below 4.4e-34 · |j|).
+/// below 6.2e-33 · |j|).
 const PIO2_HI: f64 = std::f64::consts::FRAC_PI_2;
 const PIO2_LO: f64 = 6.123_233_995_736_766_036_43e-17;
 
-/// The polynomials `p(z) = k0·z⁵ + … + k5` of [`sincos_poly_core`]: by
-/// Horner (five dependent steps, fewest operations: the batch path, bound by
-/// throughput) or by Estrin (three pairs at once, then `z²` and `z⁴`: three
-/// dependent steps, one more multiplication shared by sine and cosine: the
-/// single-pose path, bound by latency).
+/// The polynomial `k0·z⁵ + … + k5` by Estrin's scheme: three pairs at once,
+/// then `z²` and `z⁴` (shared by sine and cosine): three dependent steps
+/// where Horner's takes five, for one more multiplication. The single-pose
+/// paths wait on the result (7 % less time per pose, 13 % with every frame);
+/// the batch, bound by throughput, pays about 1 %. One scheme everywhere, so
+/// a pose is the same to the last bit from every path.
 #[inline(always)]
-fn poly5<const FMA: bool, const ESTRIN: bool>(k: [f64; 6], z: f64, z2: f64, z4: f64) -> f64 {
-    if ESTRIN {
-        let q0 = madd::<FMA>(k[0], z, k[1]);
-        let q1 = madd::<FMA>(k[2], z, k[3]);
-        let q2 = madd::<FMA>(k[4], z, k[5]);
-        madd::<FMA>(q0, z4, madd::<FMA>(q1, z2, q2))
-    } else {
-        let mut p = k[0];
-        for &c in &k[1..] {
-            p = madd::<FMA>(p, z, c);
-        }
-        p
-    }
+fn poly5<const FMA: bool>(k: [f64; 6], z: f64, z2: f64, z4: f64) -> f64 {
+    let q0 = madd::<FMA>(k[0], z, k[1]);
+    let q1 = madd::<FMA>(k[2], z, k[3]);
+    let q2 = madd::<FMA>(k[4], z, k[5]);
+    madd::<FMA>(q0, z4, madd::<FMA>(q1, z2, q2))
 }
 
-/// [`sincos_poly_impl`], its polynomials by Estrin's scheme when `ESTRIN`
-/// (three dependent steps instead of Horner's five, one more multiplication:
-/// for paths that wait on the result rather than run many at once). With
-/// `FMA` the reduction by π/2 takes two fused steps (the double nearest π/2,
-/// then the rest) instead of three.
+/// Sine and cosine of one angle (rad) by the polynomial; valid for `|x| ≤ POLY_LIMIT`.
+/// Branch-free so that loops over it vectorise; fused multiply-adds when `FMA` (see [`madd`]),
+/// and then the reduction by π/2 takes two fused steps (the double nearest π/2, then
+/// the rest) instead of three.
 #[inline(always)]
-pub fn sincos_poly_core<const FMA: bool, const ESTRIN: bool>(x: f64) -> (f64, f64) {
+pub fn sincos_poly_impl<const FMA: bool>(x: f64) -> (f64, f64) {
     let t = madd::<FMA>(x, FRAC_2_PI, ROUND_MAGIC);
     let quadrant = t.to_bits();
     let j = t - ROUND_MAGIC;
@@ -113,9 +98,9 @@ pub fn sincos_poly_core<const FMA: bool, const ESTRIN: bool>(x: f64) -> (f64, f6
     let z = r * r;
     let z2 = z * z;
     let z4 = z2 * z2;
-    let sp = poly5::<FMA, ESTRIN>([S0, S1, S2, S3, S4, S5], z, z2, z4);
+    let sp = poly5::<FMA>([S0, S1, S2, S3, S4, S5], z, z2, z4);
     let s = madd::<FMA>(r * z, sp, r);
-    let cp = poly5::<FMA, ESTRIN>([C0, C1, C2, C3, C4, C5], z, z2, z4);
+    let cp = poly5::<FMA>([C0, C1, C2, C3, C4, C5], z, z2, z4);
     let c = madd::<FMA>(z2, cp, madd::<FMA>(-0.5, z, 1.0));
     let swap = quadrant & 1 != 0;
     let (s1, c1) = if swap { (c, s) } else { (s, c) };
@@ -155,16 +140,10 @@ pub(crate) fn sincos_poly_lanes<const FMA: bool, const L: usize>(
 }
 
 /// Sine and cosine of `L` angles (rad) as whole vectors: the polynomial on every
-/// lane (by Estrin's scheme: the single-pose paths wait for it), then `std` for
-/// the lanes that need it (see [`needs_std`]) only when one does.
+/// lane, then `std` for the lanes that need it (see [`needs_std`]) only when one does.
 #[inline(always)]
 pub(crate) fn sincos_lanes<const FMA: bool, const L: usize>(x: &[f64; L]) -> ([f64; L], [f64; L]) {
-    let mut s = [0.0; L];
-    let mut c = [0.0; L];
-    for k in 0..L {
-        (s[k], c[k]) = sincos_poly_core::<FMA, true>(x[k]);
-    }
-    let any = x.iter().fold(false, |any, &v| any | needs_std(v));
+    let (mut s, mut c, any) = sincos_poly_lanes::<FMA, L>(x);
     if any {
         for k in 0..L {
             if needs_std(x[k]) {

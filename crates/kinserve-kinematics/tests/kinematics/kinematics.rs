@@ -1,7 +1,7 @@
 //! The fast FK paths against the plain product of link matrices, and the
 //! vectorised sine/cosine against `std`.
 
-use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_poly_core, sincos_slice, sincos_slice_with};
+use kinserve_kinematics::sincos::{POLY_LIMIT, sincos_poly_impl, sincos_slice, sincos_slice_with};
 use kinserve_kinematics::{Chain, Convention, DhRow, JointKind, PackedLayout, Transform};
 use kinserve_testkit::{forward_reference, supported_kernels};
 
@@ -63,7 +63,7 @@ fn sincos_matches_std_over_range() {
     }
 }
 
-/// Every variant of the polynomial (unfused / fused, Horner / Estrin) within
+/// Both variants of the polynomial (unfused, fused) within
 /// [`SINCOS_ABS_BOUND`] of `f64::sin_cos` (and 3 ulp where the value is not
 /// near 0), on random angles over the whole range and the hardest
 /// reductions: the doubles nearest large multiples of π/2, where `x − j·π/2`
@@ -86,11 +86,9 @@ fn every_sincos_variant_matches_std() {
     }
     xs.retain(|x| x.abs() <= POLY_LIMIT);
     type Variant = (&'static str, fn(f64) -> (f64, f64));
-    let variants: [Variant; 4] = [
-        ("unfused Horner", sincos_poly_core::<false, false>),
-        ("unfused Estrin", sincos_poly_core::<false, true>),
-        ("fused Horner", sincos_poly_core::<true, false>),
-        ("fused Estrin", sincos_poly_core::<true, true>),
+    let variants: [Variant; 2] = [
+        ("unfused", sincos_poly_impl::<false>),
+        ("fused", sincos_poly_impl::<true>),
     ];
     // Units in the last place between two doubles of the same sign.
     let ulps = |a: f64, b: f64| (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs();
@@ -235,6 +233,38 @@ fn random_aligned_chain(rng: &mut Rng, convention: Convention, n: usize) -> Chai
     };
     let tool = (rng.unit() < 0.5).then(|| Transform::translation(0.0, 0.0, 0.1));
     Chain::new(convention, &rows, base, tool)
+}
+
+/// A pose is the same to the last bit whichever path computes it: the batch
+/// (blocks of eight, tiles, and the tail by the single path) and the single
+/// pose, on every kernel, for general and aligned tables of 1 to 12 rows.
+/// The service relies on it: a batch answer equals its parts' answers joined.
+#[test]
+fn batch_and_single_poses_agree_bit_for_bit() {
+    let mut rng = Rng(23);
+    for case in 0..120 {
+        let convention = [Convention::Standard, Convention::Modified][case % 2];
+        let n = 1 + case % 12;
+        let chain = if case % 3 == 0 {
+            random_chain(&mut rng, convention, n)
+        } else {
+            random_aligned_chain(&mut rng, convention, n)
+        };
+        let dof = chain.dof();
+        let count = 27;
+        let qs: Vec<f64> = (0..count * dof).map(|_| rng.range(-6.0, 6.0)).collect();
+        for kernel in supported_kernels() {
+            let mut batch = vec![Transform::IDENTITY; count];
+            chain.forward_batch_with(kernel, &qs, 1.0, &mut batch);
+            for (k, pose) in batch.iter().enumerate() {
+                let single = chain.forward_with(kernel, &qs[k * dof..(k + 1) * dof], 1.0);
+                assert!(
+                    single.matrix12().map(f64::to_bits) == pose.matrix12().map(f64::to_bits),
+                    "case {case} {kernel:?} pose {k}: {single:?} != {pose:?}"
+                );
+            }
+        }
+    }
 }
 
 #[test]
