@@ -92,9 +92,9 @@ pub(crate) trait Lane8: Lane {
     /// Eight configurations of `dof` joint values each (`qb`, one after the
     /// other) as joint-major rows: `out[j][k]` is joint `j0 + j` of
     /// configuration `k`, for the joints `j0..min(j0 + 8, dof)` (the rows
-    /// beyond are zero). The default reads element by element; [`Zmm`]
-    /// transposes eight masked row loads in registers instead of a gather
-    /// per joint (a gather is 8 loads and, on AMD Zen 4, many cycles).
+    /// beyond are zero). The default reads element by element; [`Zmm`] and
+    /// [`Ymm2`] transpose eight masked row loads in registers instead of a
+    /// gather per joint (a gather is 8 loads and, on AMD Zen 4, many cycles).
     ///
     /// # Safety
     /// The CPU must support the target features the type's operations use.
