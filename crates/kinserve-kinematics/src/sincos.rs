@@ -66,9 +66,10 @@ const PIO2_LO: f64 = 6.123_233_995_736_766_036_43e-17;
 /// The polynomial `k0·z⁵ + … + k5` by Estrin's scheme: three pairs at once,
 /// then `z²` and `z⁴` (shared by sine and cosine): three dependent steps
 /// where Horner's takes five, for one more multiplication. The single-pose
-/// paths wait on the result (7 % less time per pose, 13 % with every frame);
-/// the batch, bound by throughput, pays about 1 %. One scheme everywhere, so
-/// a pose is the same to the last bit from every path.
+/// paths wait on the result (a tenth less time for a pose with every frame;
+/// a single pose's fastest samples did not move); the batch, bound by
+/// throughput, pays about 1 %. One scheme everywhere, so a pose is the same
+/// to the last bit from every path.
 #[inline(always)]
 fn poly5<const FMA: bool>(k: [f64; 6], z: f64, z2: f64, z4: f64) -> f64 {
     let q0 = madd::<FMA>(k[0], z, k[1]);
