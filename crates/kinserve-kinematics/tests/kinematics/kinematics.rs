@@ -31,8 +31,11 @@ fn the_kernels_tested_are_every_one_this_cpu_runs() {
     }
 }
 
-#[test]
-fn sincos_matches_std_over_range() {
+/// The angles the sine/cosine tests check (rad, all within ±`POLY_LIMIT`):
+/// random ones over the whole range and within ±10, the quadrant edges and
+/// special points, and the hardest reductions: the doubles nearest large
+/// multiples of π/2, where `x − j·π/2` cancels to a tiny remainder.
+fn sincos_samples() -> Vec<f64> {
     let mut rng = Rng(1);
     let mut xs: Vec<f64> = (0..200_000)
         .map(|_| rng.range(-POLY_LIMIT, POLY_LIMIT))
@@ -44,6 +47,22 @@ fn sincos_matches_std_over_range() {
         xs.extend([b, b + 1e-12, b - 1e-12, f64::from_bits(b.to_bits() + 1)]);
     }
     xs.extend([0.0, -0.0, 1e-300, -1e-300, POLY_LIMIT, -POLY_LIMIT]);
+    for k in (1..63_000).step_by(7).chain(62_000..63_600) {
+        let b = k as f64 * std::f64::consts::FRAC_PI_2;
+        xs.extend([
+            b,
+            -b,
+            f64::from_bits(b.to_bits() + 1),
+            f64::from_bits(b.to_bits() - 1),
+        ]);
+    }
+    xs.retain(|x| x.abs() <= POLY_LIMIT);
+    xs
+}
+
+#[test]
+fn sincos_matches_std_over_range() {
+    let xs = sincos_samples();
     let mut s = vec![0.0; xs.len()];
     let mut c = vec![0.0; xs.len()];
     for kernel in supported_kernels().into_iter().map(Some).chain([None]) {
@@ -65,26 +84,10 @@ fn sincos_matches_std_over_range() {
 
 /// Both variants of the polynomial (unfused, fused) within
 /// [`SINCOS_ABS_BOUND`] of `f64::sin_cos` (and 3 ulp where the value is not
-/// near 0), on random angles over the whole range and the hardest
-/// reductions: the doubles nearest large multiples of π/2, where `x − j·π/2`
-/// cancels to a tiny remainder.
+/// near 0), on the angles of [`sincos_samples`].
 #[test]
 fn every_sincos_variant_matches_std() {
-    let mut rng = Rng(3);
-    let mut xs: Vec<f64> = (0..100_000)
-        .map(|_| rng.range(-POLY_LIMIT, POLY_LIMIT))
-        .collect();
-    xs.extend((0..100_000).map(|_| rng.range(-10.0, 10.0)));
-    for k in (1..63_000).step_by(7).chain(62_000..63_600) {
-        let b = k as f64 * std::f64::consts::FRAC_PI_2;
-        xs.extend([
-            b,
-            -b,
-            f64::from_bits(b.to_bits() + 1),
-            f64::from_bits(b.to_bits() - 1),
-        ]);
-    }
-    xs.retain(|x| x.abs() <= POLY_LIMIT);
+    let xs = sincos_samples();
     type Variant = (&'static str, fn(f64) -> (f64, f64));
     let variants: [Variant; 2] = [
         ("unfused", sincos_poly_impl::<false>),
