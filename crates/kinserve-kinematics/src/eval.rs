@@ -39,6 +39,16 @@ pub(crate) const LANES: usize = 8;
 
 /// `cos θ`, `sin θ`, `dz = d + q` (prismatic) and `q` of prismatic joints,
 /// for one chunk of [`CHUNK`] joints of one pose.
+///
+/// Aligned to 64 bytes, which makes every function holding one realign its
+/// stack frame, and so the vector spills in it. Without it a single pose's
+/// speed depended on where the caller's stack lay: on AMD Zen 4, with the
+/// stack pointer at 16 or 48 modulo 64, a single PUMA pose took ~44 ns instead
+/// of ~30 (at 0 or 32: ~30), so the same binary ran at one speed or the other
+/// from process to process; the stalls sat on the first use of values the
+/// AVX-512 path had just stored to and loaded from the stack, likely a missed
+/// store-to-load forward (BENCHMARKS.md, 2026-12-07 evening).
+#[repr(align(64))]
 struct JointValues {
     c: [f64; CHUNK],
     s: [f64; CHUNK],
