@@ -45,9 +45,10 @@ pub(crate) const LANES: usize = 8;
 /// speed depended on where the caller's stack lay: on AMD Zen 4, with the
 /// stack pointer at 16 or 48 modulo 64, a single PUMA pose took ~44 ns instead
 /// of ~30 (at 0 or 32: ~30), so the same binary ran at one speed or the other
-/// from process to process; the stalls sat on the first use of values the
-/// AVX-512 path had just stored to and loaded from the stack, likely a missed
-/// store-to-load forward (BENCHMARKS.md, 2026-12-07 evening).
+/// from process to process. The stalls sat at the start of the joint-value
+/// computation, beside the function's stack spills of 64-byte vectors:
+/// likely a store-to-load forward missed across a 32-byte boundary
+/// (BENCHMARKS.md, 2026-12-07 evening).
 #[repr(align(64))]
 struct JointValues {
     c: [f64; CHUNK],
