@@ -39,22 +39,59 @@ pub(crate) const LANES: usize = 8;
 
 /// `cos θ`, `sin θ`, `dz = d + q` (prismatic) and `q` of prismatic joints,
 /// for one chunk of [`CHUNK`] joints of one pose.
-///
-/// Aligned to 64 bytes, which makes every function holding one realign its
-/// stack frame, and so the vector spills in it. Without it a single pose's
-/// speed depended on where the caller's stack lay: on AMD Zen 4, with the
-/// stack pointer at 16 or 48 modulo 64, a single PUMA pose took ~44 ns instead
-/// of ~30 (at 0 or 32: ~30), so the same binary ran at one speed or the other
-/// from process to process. The stalls sat at the start of the joint-value
-/// computation, beside the function's stack spills of 64-byte vectors:
-/// likely a store-to-load forward missed across a 32-byte boundary
-/// (BENCHMARKS.md, 2026-12-07 evening).
-#[repr(align(64))]
 struct JointValues {
     c: [f64; CHUNK],
     s: [f64; CHUNK],
     dz: [f64; CHUNK],
     qz: [f64; CHUNK],
+}
+
+/// How a kernel's function keeps a chunk's [`JointValues`] in its stack
+/// frame (they stay there: the steps index them by joint): [`Natural`] or
+/// [`Aligned64`].
+trait Hold {
+    fn hold(v: JointValues) -> Self;
+    fn values(&self) -> &JointValues;
+}
+
+/// At the values' own alignment (8 bytes).
+struct Natural(JointValues);
+
+/// At 64 bytes, which makes the function realign its frame, and so its
+/// vector spills. Measured on AMD Zen 4 (BENCHMARKS.md, 2026-12-07 evening):
+/// unaligned, the AVX-512 single pose took ~30 or ~44 ns (PUMA) depending on
+/// where the caller's stack lay (16 or 48 modulo 64: slow), so the same
+/// binary ran at one speed or the other from process to process; the stalls
+/// sat at the start of the joint-value computation, beside its spills of
+/// 64-byte vectors (likely a store-to-load forward missed across a 32-byte
+/// boundary). Aligned: ~30 in every process, and both batch functions
+/// (AVX-512 and AVX2) faster too. The AVX2 single pose stays [`Natural`]:
+/// realigned it took 40–45 ns in every process, where unaligned it takes 35
+/// or 50 by the same lottery (perhaps because realigning takes a register
+/// for the frame pointer).
+#[repr(align(64))]
+struct Aligned64(JointValues);
+
+impl Hold for Natural {
+    #[inline(always)]
+    fn hold(v: JointValues) -> Self {
+        Natural(v)
+    }
+    #[inline(always)]
+    fn values(&self) -> &JointValues {
+        &self.0
+    }
+}
+
+impl Hold for Aligned64 {
+    #[inline(always)]
+    fn hold(v: JointValues) -> Self {
+        Aligned64(v)
+    }
+    #[inline(always)]
+    fn values(&self) -> &JointValues {
+        &self.0
+    }
 }
 
 /// Joint values `q[start..start + CHUNK]` (missing ones count as 0) turned into
@@ -202,11 +239,16 @@ fn transform_of<V: Col4>(m: &[V; 4]) -> Transform {
 /// # Safety
 /// See [`Col4::load`].
 #[inline(always)]
-unsafe fn forward<const FMA: bool, V: Col4>(p: &Program, q: &[f64], scale: f64) -> Transform {
+unsafe fn forward<const FMA: bool, V: Col4, H: Hold>(
+    p: &Program,
+    q: &[f64],
+    scale: f64,
+) -> Transform {
     // SAFETY: forwarded from this function's own contract.
     let mut m: State<V, 1> = [unsafe { load_cols::<V>(&p.base) }];
     for (ci, (lanes, steps)) in p.lanes.iter().zip(p.steps.chunks(CHUNK)).enumerate() {
-        let v = joint_values::<FMA>(lanes, q, ci * CHUNK, scale);
+        let held = H::hold(joint_values::<FMA>(lanes, q, ci * CHUNK, scale));
+        let v = held.values();
         for (k, st) in steps.iter().enumerate().take(CHUNK) {
             step::apply::<V, 1>(
                 st,
@@ -432,7 +474,7 @@ impl TileJoints {
 /// # Safety
 /// See [`Lane8::load8`] and [`Col4::load`].
 #[inline(always)]
-unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4, O: BatchOut + ?Sized>(
+unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4, H: Hold, O: BatchOut + ?Sized>(
     p: &Program,
     q: &[f64],
     scale: f64,
@@ -466,7 +508,7 @@ unsafe fn forward_batch<const FMA: bool, V: Lane8, W: Col4, O: BatchOut + ?Sized
     }
     for i in blocks * LANES..count {
         // SAFETY: forwarded from this function's own contract.
-        let pose = unsafe { forward::<FMA, W>(p, &q[i * dof..(i + 1) * dof], scale) };
+        let pose = unsafe { forward::<FMA, W, H>(p, &q[i * dof..(i + 1) * dof], scale) };
         out.put(i, &pose);
     }
 }
@@ -485,7 +527,8 @@ fn redo<const FMA: bool, O: BatchOut + ?Sized>(
     let dof = p.steps.len();
     for i in range {
         // SAFETY: `Arr` needs no target feature.
-        let pose = unsafe { forward::<FMA, Arr<FMA, 4>>(p, &q[i * dof..(i + 1) * dof], scale) };
+        let pose =
+            unsafe { forward::<FMA, Arr<FMA, 4>, Natural>(p, &q[i * dof..(i + 1) * dof], scale) };
         out.put(i, &pose);
     }
 }
@@ -681,9 +724,10 @@ unsafe fn tile_steps<V: Lane8>(
 /// One `#[target_feature]` copy of each evaluator per x86_64 kernel. There is no
 /// AVX-512 copy of the frames path: it was ~20 % slower than the AVX2 copy
 /// (measured on the project machine), and a frame is one 4-wide column set, so
-/// AVX-512 has nothing to add; [`Kernel::Avx512`] runs the AVX2 copy.
+/// AVX-512 has nothing to add; [`Kernel::Avx512`] runs the AVX2 copy. The two
+/// [`Hold`] types are the single pose's and the batch's (see [`Aligned64`]).
 macro_rules! instantiate {
-    ($name:ident, $features:literal, $batch:ty $(, $frames:ident)?) => {
+    ($name:ident, $features:literal, $batch:ty, $hold:ty, $batch_hold:ty $(, $frames:ident)?) => {
         #[cfg(target_arch = "x86_64")]
         mod $name {
             use super::*;
@@ -692,7 +736,7 @@ macro_rules! instantiate {
             pub(super) fn forward(p: &Program, q: &[f64], scale: f64) -> Transform {
                 // SAFETY: this function only runs on a CPU with the features above
                 // (its callers check), which include what `Ymm` needs.
-                unsafe { super::forward::<true, Ymm>(p, q, scale) }
+                unsafe { super::forward::<true, Ymm, $hold>(p, q, scale) }
             }
 
             $(
@@ -721,14 +765,20 @@ macro_rules! instantiate {
                 out: &mut O,
             ) {
                 // SAFETY: as in `forward`.
-                unsafe { super::forward_batch::<true, $batch, Ymm, O>(p, q, scale, out) }
+                unsafe { super::forward_batch::<true, $batch, Ymm, $batch_hold, O>(p, q, scale, out) }
             }
         }
     };
 }
 
-instantiate!(avx2, "avx2,fma", Ymm2, forward_frames);
-instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
+instantiate!(avx2, "avx2,fma", Ymm2, Natural, Aligned64, forward_frames);
+instantiate!(
+    avx512,
+    "avx512f,avx512vl,avx512dq,avx2,fma",
+    Zmm,
+    Aligned64,
+    Aligned64
+);
 
 /// Single pose on `kernel`.
 ///
@@ -738,7 +788,7 @@ instantiate!(avx512, "avx512f,avx512vl,avx512dq,avx2,fma", Zmm);
 pub(crate) unsafe fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f64) -> Transform {
     match kernel {
         // SAFETY: `Arr` needs no target feature.
-        Kernel::Portable => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
+        Kernel::Portable => unsafe { forward::<false, Arr<false, 4>, Natural>(p, q, scale) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
         Kernel::Avx2Fma => unsafe { avx2::forward(p, q, scale) },
@@ -747,7 +797,7 @@ pub(crate) unsafe fn forward_on(kernel: Kernel, p: &Program, q: &[f64], scale: f
         Kernel::Avx512 => unsafe { avx512::forward(p, q, scale) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.
-        _ => unsafe { forward::<false, Arr<false, 4>>(p, q, scale) },
+        _ => unsafe { forward::<false, Arr<false, 4>, Natural>(p, q, scale) },
     }
 }
 
@@ -810,7 +860,7 @@ pub(crate) unsafe fn forward_batch_on<O: BatchOut + ?Sized>(
     match kernel {
         // SAFETY: `Arr` needs no target feature.
         Kernel::Portable => unsafe {
-            forward_batch::<false, Arr<false, 8>, Arr<false, 4>, O>(p, q, scale, out)
+            forward_batch::<false, Arr<false, 8>, Arr<false, 4>, Natural, O>(p, q, scale, out)
         },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the caller guarantees the CPU supports Avx2Fma: avx2 and fma.
@@ -820,6 +870,8 @@ pub(crate) unsafe fn forward_batch_on<O: BatchOut + ?Sized>(
         Kernel::Avx512 => unsafe { avx512::forward_batch(p, q, scale, out) },
         #[cfg(not(target_arch = "x86_64"))]
         // SAFETY: `Arr` needs no target feature.
-        _ => unsafe { forward_batch::<false, Arr<false, 8>, Arr<false, 4>, O>(p, q, scale, out) },
+        _ => unsafe {
+            forward_batch::<false, Arr<false, 8>, Arr<false, 4>, Natural, O>(p, q, scale, out)
+        },
     }
 }
