@@ -67,8 +67,7 @@ struct Natural(JointValues);
 /// boundary). Aligned: ~30 in every process, and both batch functions
 /// (AVX-512 and AVX2) faster too. The AVX2 single pose stays [`Natural`]:
 /// realigned it took 40–45 ns in every process, where unaligned it takes 35
-/// or 50 by the same lottery (perhaps because realigning takes a register
-/// for the frame pointer).
+/// in most and 50 in some (not as a function of the stack address alone).
 #[repr(align(64))]
 struct Aligned64(JointValues);
 
