@@ -14,7 +14,7 @@
 # CPU split behind the per-request ratios: the server's and the load
 # generator's CPU per request or message (they share the cores, so a ratio
 # of two rows is a ratio of both processes' CPU) with what each goal allows,
-# then TLS beside plain.
+# then TLS beside plain, then kinserve beside its floor (scripts/bench-floor.sh).
 #   BIN_DIR=/tmp/old scripts/bench.sh   # binaries of another build (no cargo build;
 #                                       # an old kinserve-load without --pose-format
 #                                       # runs every row in the full format)
@@ -35,28 +35,8 @@ if [ -z "$BIN_DIR" ]; then
 fi
 formats="full matrix position"
 "$BIN_DIR/kinserve-load" --help | grep -q -- --pose-format || formats="full"
-# kinserve-load is one client with many connections: it gets every budget
-# (share 100 %), and batches queue on the batch slots as a throughput test
-# wants instead of being refused by the compute pool (64 permits).
-# The settings of every server this script starts (the TLS one too).
-SERVER_ENV=(KINSERVE_MAX_CONCURRENT_REQUESTS=4096 KINSERVE_CLIENT_SHARE_PERCENT=100 KINSERVE_COMPUTE_THREADS=64 RUST_LOG=warn)
-# wait_ready LOG CURL_ARGS... : until the readiness URL (last argument) answers, or exit.
-wait_ready() {
-  local log=$1; shift
-  for _ in $(seq 100); do
-    curl -fs "$@" >/dev/null 2>&1 && return
-    sleep 0.1
-  done
-  curl -fs "$@" >/dev/null || { echo "server did not start" >&2; cat "$log" >&2; exit 1; }
-}
-# fk_lua FILE: the wrk script of one REST FK request.
-fk_lua() {
-  cat >"$1" <<'LUA'
-wrk.method = "POST"
-wrk.body   = '{"joints": [0.1, -0.5, 0.7, 0.2, 0.3, -0.1]}'
-wrk.headers["Content-Type"] = "application/json"
-LUA
-}
+# shellcheck source=scripts/bench-lib.sh
+source scripts/bench-lib.sh
 data=$(mktemp -d)
 log=$(mktemp)
 env KINSERVE_HTTP_ADDR=$HTTP KINSERVE_GRPC_ADDR=$GRPC KINSERVE_DATA_DIR=$data "${SERVER_ENV[@]}" \
@@ -76,7 +56,7 @@ load() { "$BIN_DIR/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robo
 # cores, so every end-to-end ratio is a ratio of their CPU together.
 # server_cpu: CPU seconds (user + system) the server has used so far;
 # children_cpu: those of this shell's finished children (the generator) in $children_s.
-server_cpu() { awk -v hz="$(getconf CLK_TCK)" '{printf "%.2f", ($14 + $15) / hz}' "/proc/$pid/stat"; }
+server_cpu() { cpu_of "$pid"; }
 # (`times` must run in the shell itself, not in a pipe or `$(…)`, whose
 # subshell has no finished children: it writes to a file read afterwards.)
 children_cpu() {
@@ -364,3 +344,7 @@ for row, base, goal, what in (("grpc-stream", "grpc-health", 20, "gRPC stream ÷
         print(f"{what}: a {row} unit may cost both {per[base] / goal:.2f} µs; it costs {per[row]:.2f}")
 PY
 tls_vs_plain
+echo
+# The floor starts its own kinserve: this run's server is stopped first.
+kill "$pid" 2>/dev/null; wait "$pid" 2>/dev/null || true
+BIN_DIR=$BIN_DIR DURATION=$DURATION WARMUP=$WARMUP ROBOT=$ROBOT scripts/bench-floor.sh

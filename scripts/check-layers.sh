@@ -47,6 +47,9 @@ echo "check-layers: crate dependencies of the API crate layout (issue 21)"
 check kinserve-api axum tokio-postgres kinserve || status=1
 # The load generator talks to a server; it does not link one.
 check kinserve-load kinserve axum || status=1
+# The benchmarks' floor is the same stack without the server's layers: it
+# must not link them (else it would measure them too).
+check kinserve-floor kinserve kinserve-load || status=1
 
 echo "check-layers: module circles"
 python3 scripts/module_cycles.py --workspace || status=1
