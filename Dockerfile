@@ -34,6 +34,7 @@ COPY crates/kinserve-model/Cargo.toml crates/kinserve-model/
 COPY crates/kinserve-api/Cargo.toml crates/kinserve-api/
 COPY crates/kinserve-load/Cargo.toml crates/kinserve-load/
 COPY crates/kinserve-testkit/Cargo.toml crates/kinserve-testkit/
+COPY crates/kinserve-floor/Cargo.toml crates/kinserve-floor/
 RUN --mount=type=cache,id=kinserve-cargo-registry,target=/usr/local/cargo/registry,sharing=locked \
     set -eu; \
     for m in Cargo.toml crates/*/Cargo.toml; do awk -v pre="${m%Cargo.toml}" ' \
