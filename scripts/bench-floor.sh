@@ -53,8 +53,10 @@ wait_ready "$dir/floor.log" "http://$F_HTTP/healthz"
 lua=$dir/fk.lua
 fk_lua "$lua"
 
-# generator_cpu: CPU seconds of this shell's finished children (the
-# generators) in $gen_s (`times` runs in the shell itself: see bench.sh).
+# generator_cpu: CPU seconds of the finished children of the shell it runs
+# in, in $gen_s. `row` runs in a `$(…)` subshell of its own, which runs the
+# generator and reads `times` before and after it: both readings are that
+# subshell's, so the difference is the generator's (with its small JSON filter).
 generator_cpu() {
   times >"$dir/times"
   gen_s=$(awk 'NR == 2 {s = 0; for (i = 1; i <= 2; i++) {split($i, p, /[ms]/); s += p[1] * 60 + p[2]} printf "%.3f", s}' "$dir/times")
