@@ -53,24 +53,20 @@ wait_ready "$dir/floor.log" "http://$F_HTTP/healthz"
 lua=$dir/fk.lua
 fk_lua "$lua"
 
-# generator_cpu: CPU seconds of the finished children of the shell it runs
-# in, in $gen_s. `row` runs in a `$(…)` subshell of its own, which runs the
-# generator and reads `times` before and after it: both readings are that
-# subshell's, so the difference is the generator's (with its small JSON filter).
-generator_cpu() {
-  times >"$dir/times"
-  gen_s=$(awk 'NR == 2 {s = 0; for (i = 1; i <= 2; i++) {split($i, p, /[ms]/); s += p[1] * 60 + p[2]} printf "%.3f", s}' "$dir/times")
-}
+# The generator's CPU: `row` runs in a `$(…)` subshell of its own, which
+# runs the generator and reads `children_cpu` (bench-lib.sh) before and after
+# it: both readings are that subshell's, so the difference is the
+# generator's (with its small JSON filter).
 # row WHO NAME PID CMD...: runs CMD (a generator printing "answered per_s"),
 # prints its rate and appends "WHO NAME per_s server_us generator_us" (CPU
 # per request or message over the whole command, warm-up included) to $dir/rows.
 row() {
   local who=$1 name=$2 spid=$3 s0 g0 s1 out
   shift 3
-  s0=$(cpu_of "$spid"); generator_cpu; g0=$gen_s
+  s0=$(cpu_of "$spid"); children_cpu "$dir/times"; g0=$children_s
   out=$("$@")
-  s1=$(cpu_of "$spid"); generator_cpu
-  echo "$who $name $out $s0 $s1 $g0 $gen_s" >>"$dir/rows"
+  s1=$(cpu_of "$spid"); children_cpu "$dir/times"
+  echo "$who $name $out $s0 $s1 $g0 $children_s" >>"$dir/rows"
   echo "${out#* }"
 }
 # Warm-up ÷ run: kinserve-load counts answers after the warm-up only.

@@ -30,3 +30,11 @@ LUA
 
 # cpu_of PID: CPU seconds (user + system) the process has used so far.
 cpu_of() { awk -v hz="$(getconf CLK_TCK)" '{printf "%.2f", ($14 + $15) / hz}' "/proc/$1/stat"; }
+
+# children_cpu FILE: CPU seconds (user + system) of the finished children of
+# the shell it runs in, in $children_s (FILE: scratch for `times`, which must
+# run in that shell itself, not in a pipe or a `$(…)` of its own).
+children_cpu() {
+  times >"$1"
+  children_s=$(awk 'NR == 2 {s = 0; for (i = 1; i <= 2; i++) {split($i, p, /[ms]/); s += p[1] * 60 + p[2]} printf "%.3f", s}' "$1")
+}

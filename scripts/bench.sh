@@ -55,14 +55,8 @@ load() { "$BIN_DIR/kinserve-load" --http-addr "$HTTP" --grpc-addr "$GRPC" --robo
 # The CPU split of a row: the server and the load generator share the two
 # cores, so every end-to-end ratio is a ratio of their CPU together.
 # server_cpu: CPU seconds (user + system) the server has used so far;
-# children_cpu: those of this shell's finished children (the generator) in $children_s.
+# children_cpu (bench-lib.sh): those of this shell's finished children (the generator).
 server_cpu() { cpu_of "$pid"; }
-# (`times` must run in the shell itself, not in a pipe or `$(…)`, whose
-# subshell has no finished children: it writes to a file read afterwards.)
-children_cpu() {
-  times >"$split_times"
-  children_s=$(awk 'NR == 2 {s = 0; for (i = 1; i <= 2; i++) {split($i, p, /[ms]/); s += p[1] * 60 + p[2]} printf "%.3f", s}' "$split_times")
-}
 split_log=$(mktemp)
 split_times=$(mktemp)
 # run_split NAME CMD...: runs CMD (its standard output passes through) and
@@ -71,9 +65,9 @@ split_times=$(mktemp)
 run_split() {
   local name=$1 s0 c0 s1
   shift
-  s0=$(server_cpu); children_cpu; c0=$children_s
+  s0=$(server_cpu); children_cpu "$split_times"; c0=$children_s
   "$@"
-  s1=$(server_cpu); children_cpu
+  s1=$(server_cpu); children_cpu "$split_times"
   echo "$name $s1 $s0 $children_s $c0" >>"$split_log"
 }
 
