@@ -25,6 +25,7 @@ pub mod ik;
 pub mod jacobian;
 pub mod pose;
 pub mod pose_format;
+pub mod pose_json;
 pub mod rest;
 pub mod urdf_import;
 

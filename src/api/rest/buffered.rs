@@ -29,6 +29,7 @@ use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::Request;
 use axum::http::{Method, header};
 use axum::response::{IntoResponse, Response};
+use futures_util::FutureExt;
 use http_body::{Frame, SizeHint};
 use http_body_util::BodyExt;
 use tokio::time::Instant;
@@ -70,7 +71,7 @@ fn refuse(e: Error) -> Response {
     refuse_unread(true, ApiError(e).into_response())
 }
 
-fn too_large(limit: usize) -> Error {
+pub(super) fn too_large(limit: usize) -> Error {
     Error::TooLarge {
         detail: format!("request body is over the limit of {limit} bytes"),
         field: None,
@@ -122,18 +123,35 @@ async fn collect(
     let deadline = Instant::now() + state.settings.request_timeout;
     let mut buf: Vec<u8> = Vec::with_capacity(expected.min(limit));
     loop {
-        let until = (Instant::now() + idle).min(deadline);
-        let frame = match tokio::time::timeout_at(until, body.frame()).await {
-            Err(_) => return Err(stalled(idle, state)),
-            Ok(None) => break,
-            Ok(Some(Err(e))) => return Err(unreadable(&e, limit)),
-            Ok(Some(Ok(frame))) => frame,
+        // A piece already received is taken without arming a timer (a small
+        // body usually arrives with its head); only a wait is timed.
+        let next = match body.frame().now_or_never() {
+            Some(next) => next,
+            None => {
+                let until = (Instant::now() + idle).min(deadline);
+                match tokio::time::timeout_at(until, body.frame()).await {
+                    Err(_) => return Err(stalled(idle, state)),
+                    Ok(next) => next,
+                }
+            }
+        };
+        let frame = match next {
+            None => break,
+            Some(Err(e)) => return Err(unreadable(&e, limit)),
+            Some(Ok(frame)) => frame,
         };
         let Ok(data) = frame.into_data() else {
             continue;
         };
         if buf.len().saturating_add(data.len()) > limit {
             return Err(too_large(limit));
+        }
+        if buf.is_empty() && body.is_end_stream() {
+            // The whole body in one piece: kept as it is, not copied.
+            if !held.grow_to(data.len()) {
+                return Err(request_bytes_refusal());
+            }
+            return Ok(data);
         }
         if !held.grow_to(buf.len() + data.len()) {
             return Err(request_bytes_refusal());

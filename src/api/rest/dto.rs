@@ -5,6 +5,7 @@ use utoipa::ToSchema;
 
 use crate::api::pose::{Pose, PoseMatrices, PoseMatrix, PosePosition, PosePositions};
 use crate::api::pose_format::{self, AsMatrix, AsPose, AsPosition, Many, One, PoseFormat};
+use crate::api::pose_json;
 use crate::kinematics::Transform;
 use crate::model::operations::{ConfigAnswers, ConfigOps, ConfigSpec};
 use crate::model::{
@@ -289,6 +290,57 @@ impl<'a> FkReply<'a> {
             frame_positions: f.position,
         }
     }
+}
+
+impl FkReply<'_> {
+    /// Appends this answer's JSON: exactly the bytes serde_json writes for it
+    /// (tested), with the poses written by [`pose_json`] rather than through
+    /// serde (the `fk` handler's answer; other paths keep serde).
+    pub fn write_json(&self, out: &mut Vec<u8>) -> serde_json::Result<()> {
+        out.extend_from_slice(b"{\"robot\":");
+        serde_json::to_writer(&mut *out, self.robot)?;
+        out.extend_from_slice(b",\"length_unit\":");
+        serde_json::to_writer(&mut *out, &self.length_unit)?;
+        let one = [
+            ("pose", PoseFormat::Full, self.pose.map(|p| p.0)),
+            ("matrix", PoseFormat::Matrix, self.matrix.map(|p| p.0)),
+            ("position", PoseFormat::Position, self.position.map(|p| p.0)),
+        ];
+        for (name, format, t) in one {
+            if let Some(t) = t {
+                field_name(out, name);
+                pose_json::pose(out, format, &t);
+            }
+        }
+        let many = [
+            ("frames", PoseFormat::Full, self.frames.map(|m| m.0)),
+            (
+                "frame_matrices",
+                PoseFormat::Matrix,
+                self.frame_matrices.map(|m| m.0),
+            ),
+            (
+                "frame_positions",
+                PoseFormat::Position,
+                self.frame_positions.map(|m| m.0),
+            ),
+        ];
+        for (name, format, ts) in many {
+            if let Some(ts) = ts {
+                field_name(out, name);
+                pose_json::poses(out, format, ts);
+            }
+        }
+        out.push(b'}');
+        Ok(())
+    }
+}
+
+/// `,"name":` (names here are plain ASCII: nothing to escape).
+fn field_name(out: &mut Vec<u8>, name: &str) {
+    out.extend_from_slice(b",\"");
+    out.extend_from_slice(name.as_bytes());
+    out.extend_from_slice(b"\":");
 }
 
 /// `POST /v1/robots/{name}/fk/batch` response. The poses come in exactly one
@@ -693,6 +745,33 @@ impl From<&IkAnswer> for WsIk {
             singular: a.singular.clone(),
             solutions: a.solutions.clone(),
             truncated: a.solutions.is_some().then_some(a.truncated),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fk_answer_written_directly_is_serde_jsons_byte_for_byte() {
+        let pose = Transform::rot_z(0.6).compose(&Transform::translation(0.3, -0.0, 1.0 / 3.0));
+        let frames = [Transform::IDENTITY, Transform::rot_x(-2.9), pose];
+        for format in [PoseFormat::Full, PoseFormat::Matrix, PoseFormat::Position] {
+            for with_frames in [None, Some(&frames[..])] {
+                for unit in [LengthUnit::M, LengthUnit::Mm] {
+                    let reply = FkReply::new("ur5e \"copy\"", unit, format, pose, with_frames);
+                    let mut fast = Vec::new();
+                    reply.write_json(&mut fast).unwrap();
+                    let reference = serde_json::to_vec(&reply).unwrap();
+                    assert_eq!(
+                        String::from_utf8(fast).unwrap(),
+                        String::from_utf8(reference).unwrap(),
+                        "{format:?}, frames: {}",
+                        with_frames.is_some()
+                    );
+                }
+            }
         }
     }
 }

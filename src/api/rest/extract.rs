@@ -1,10 +1,12 @@
 //! Request extractors that turn every client mistake into a kinserve [`Error`]
 //! (so the response is problem+json, never axum's plain-text rejection).
 
-use axum::body::Bytes;
+use axum::body::{Bytes, HttpBody};
 use axum::extract::{FromRequest, FromRequestParts, Path, Request};
 use axum::http::{header, request::Parts};
 use axum::response::{IntoResponse, Response};
+use futures_util::FutureExt;
+use http_body_util::BodyExt;
 use serde::de::DeserializeOwned;
 
 use super::AppState;
@@ -84,14 +86,38 @@ pub(super) async fn read_bytes(req: Request, state: &AppState) -> Result<Bytes, 
         .copied()
         .unwrap_or_default();
     let limit = super::buffered::body_limit(admission, &state.settings);
-    axum::body::to_bytes(req.into_body(), limit)
+    let mut body = req.into_body();
+    // A body the admission read ahead is one piece in memory: taken as it is
+    // (no collector, no copy). Anything else is collected within the limit.
+    let first = match body.frame().now_or_never() {
+        None => Bytes::new(),
+        Some(None) => return Ok(Bytes::new()),
+        Some(Some(frame)) => frame
+            .map_err(|e| super::buffered::unreadable(&e, limit))?
+            .into_data()
+            .unwrap_or_default(),
+    };
+    if first.len() > limit {
+        return Err(super::buffered::too_large(limit));
+    }
+    if body.is_end_stream() {
+        return Ok(first);
+    }
+    let rest = axum::body::to_bytes(body, limit - first.len())
         .await
-        .map_err(|e| super::buffered::unreadable(&e, limit))
+        .map_err(|e| super::buffered::unreadable(&e, limit))?;
+    if first.is_empty() {
+        return Ok(rest);
+    }
+    Ok([&first[..], &rest[..]].concat().into())
 }
 
 /// Whether a `Content-Type` value is JSON: `application/json` or
 /// `application/<anything>+json`, any case, parameters ignored.
 pub(super) fn is_json(content_type: &str) -> bool {
+    if content_type == "application/json" {
+        return true; // what nearly every client sends
+    }
     let mime = content_type.split(';').next().unwrap_or("").trim();
     let Some((kind, sub)) = mime.split_once('/') else {
         return false;

@@ -319,20 +319,14 @@ pub async fn fk(
     let spec = FkSpec::from(req);
     let FkAnswer { pose, frames } = state.service.fk(robot, &spec)?;
     entry.count_poses(Protocol::Rest, 1);
-    json_response(&FkReply::new(
+    let reply = FkReply::new(
         robot.name(),
         robot.length_unit(),
         spec.pose_format,
         pose,
         frames.as_deref(),
-    ))
-}
-
-/// A 200 `application/json` answer, serialised here (the body borrows from
-/// the handler's locals) into one buffer sized for a full pose answer (about
-/// 700 bytes), so a single answer is written without regrowing it.
-fn json_response<T: serde::Serialize>(body: &T) -> ApiResult<Response> {
-    let bytes = super::streamed::json_bytes(body, 1024)?;
+    );
+    let bytes = super::streamed::encoded(1024, |out| reply.write_json(out))?;
     Ok(super::streamed::json_answer(bytes))
 }
 

@@ -29,7 +29,8 @@ use http_body::{Frame, SizeHint};
 use super::buffered::Holds;
 use super::dto::FkBatchResponse;
 use crate::api::ik::IkPathOutput;
-use crate::api::pose_format::{FormattedPose, PoseFormat};
+use crate::api::pose_format::PoseFormat;
+use crate::api::pose_json;
 use crate::error::Error;
 use crate::kinematics::Transform;
 
@@ -75,21 +76,27 @@ pub fn batch_answer(
     format: PoseFormat,
     poses: Vec<Transform>,
 ) -> Result<Response, Error> {
-    let whole = FkBatchResponse::new(robot, length_unit, format, &poses);
-    let estimate = estimated_bytes(format, poses.len());
-    if estimate < STREAM_FROM_BYTES {
-        return json_bytes(&whole, answer_capacity(format, poses.len())).map(json_answer);
-    }
     let empty = FkBatchResponse::new(robot, length_unit, format, &[]);
     let shell = json_bytes(&empty, 256)?;
     // The poses' field (`poses`, `matrices` or `positions`, by format) is the
-    // last one written: the shell ends with `[]}`; the head keeps `[`.
+    // last one written: the shell ends with `[]}`; the head keeps `[`. The
+    // poses go between, written by `pose_json` (serde_json's bytes).
     let Some(head) = shell.as_slice().strip_suffix(b"]}".as_slice()) else {
         return Err(internal("the batch answer does not end with its poses"));
     };
+    if estimated_bytes(format, poses.len()) < STREAM_FROM_BYTES {
+        let whole = encoded(answer_capacity(format, poses.len()), |out| {
+            out.extend_from_slice(head);
+            pose_json::items(out, format, &poses);
+            out.extend_from_slice(b"]}");
+            Ok(())
+        })?;
+        return Ok(json_answer(whole));
+    }
     let holds = poses.len() * std::mem::size_of::<Transform>() + IN_FLIGHT_BYTES;
     let body = ItemsBody::new(head, b"]}", poses, move |buf, pose: &Transform| {
-        serde_json::to_writer(buf, &FormattedPose::new(format, *pose))
+        pose_json::pose(buf, format, pose);
+        Ok(())
     });
     let mut resp = json_answer(Body::new(body));
     resp.extensions_mut().insert(Holds(holds));
@@ -136,8 +143,19 @@ pub(super) fn json_bytes<T: serde::Serialize>(
     value: &T,
     capacity: usize,
 ) -> Result<Vec<u8>, Error> {
+    encoded(capacity, |out| serde_json::to_writer(out, value))
+}
+
+/// The bytes `write` appends to a buffer of `capacity` bytes to start with,
+/// under the request's `encode` span.
+pub(super) fn encoded(
+    capacity: usize,
+    write: impl FnOnce(&mut Vec<u8>) -> serde_json::Result<()>,
+) -> Result<Vec<u8>, Error> {
     let _encode = crate::trace_span!("encode").entered();
-    json_vec(value, capacity).map_err(|e| internal(&e.to_string()))
+    let mut bytes = Vec::with_capacity(capacity);
+    write(&mut bytes).map_err(|e| internal(&e.to_string()))?;
+    Ok(bytes)
 }
 
 /// `value` as JSON in a buffer of `capacity` bytes to start with (no span:
