@@ -112,6 +112,11 @@ pub struct Service {
     pool: ComputePool,
 }
 
+/// The robot a stream's last message named, with the registry generation
+/// it was looked up in (see [`Service::robot_cached`]). One per stream.
+#[derive(Debug, Default)]
+pub struct RobotCache(Option<(u64, Arc<Entry>)>);
+
 impl Service {
     /// A service over `registry`; `writes` says who may change it.
     pub fn new(registry: Registry, limits: ServiceLimits, writes: WriteAccess) -> Service {
@@ -266,6 +271,30 @@ impl Service {
             suggestions: self.nearest_names(name),
         })?;
         crate::telemetry::spans::record_robot(entry.robot.name());
+        Ok(entry)
+    }
+
+    /// [`Service::robot_at`] for a stream's message: the entry `cache` holds
+    /// when the message names the same robot and the registry has not
+    /// changed since (no map lookup, no hashing of the name), else looked up
+    /// and kept. A robot replaced or deleted mid-stream is seen by the next
+    /// message, as with a lookup per message.
+    pub fn robot_cached(
+        &self,
+        cache: &mut RobotCache,
+        name: &str,
+        field: &str,
+    ) -> Result<Arc<Entry>> {
+        let generation = self.registry.generation();
+        if let Some((kept, entry)) = &cache.0
+            && *kept == generation
+            && entry.robot.name() == name
+        {
+            crate::telemetry::spans::record_robot(name);
+            return Ok(Arc::clone(entry));
+        }
+        let entry = self.robot_at(name, field)?;
+        cache.0 = Some((generation, Arc::clone(&entry)));
         Ok(entry)
     }
 

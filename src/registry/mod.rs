@@ -16,6 +16,7 @@ pub mod version;
 use std::collections::HashMap;
 use std::ops::Deref;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use arc_swap::ArcSwap;
@@ -204,6 +205,8 @@ type Tombstones = HashMap<String, u64>;
 /// The set of named robots.
 pub struct Registry {
     map: ArcSwap<Snapshot>,
+    /// Bumped after every new snapshot (see [`Registry::generation`]).
+    generation: AtomicU64,
     /// Serialises snapshot updates (and the writes of a local store).
     writer: Mutex<Tombstones>,
     store: Box<dyn Store>,
@@ -235,6 +238,7 @@ impl Registry {
     pub fn new(store: Box<dyn Store>) -> Registry {
         Registry {
             map: ArcSwap::from_pointee(Snapshot::default()),
+            generation: AtomicU64::new(0),
             writer: Mutex::new(Tombstones::new()),
             store,
             max_registered: usize::MAX,
@@ -275,7 +279,7 @@ impl Registry {
             }
         }
         report.loaded = map.values().filter(|e| e.origin == Origin::Builtin).count();
-        self.map.store(Arc::new(Snapshot::new(map)));
+        self.swap_in(map);
         report
     }
 
@@ -364,7 +368,7 @@ impl Registry {
                 map.remove(name);
             }
         }
-        self.map.store(Arc::new(Snapshot::new(map)));
+        self.swap_in(map);
         Ok(true)
     }
 
@@ -389,6 +393,20 @@ impl Registry {
     /// The robot called `name`, if any. Lock-free.
     pub fn get(&self, name: &str) -> Option<Arc<Entry>> {
         self.map.load().get(name).cloned()
+    }
+
+    /// A number that changes whenever the set of robots may have: read
+    /// before [`Registry::get`], an entry got then is still the current one
+    /// for its name while the number is the same (a stream's messages look
+    /// their robot up once per change, see [`crate::service::RobotCache`]).
+    pub fn generation(&self) -> u64 {
+        self.generation.load(Ordering::Acquire)
+    }
+
+    /// Makes `map` the registry's robots, then moves the generation on.
+    fn swap_in(&self, map: Map) {
+        self.map.store(Arc::new(Snapshot::new(map)));
+        self.generation.fetch_add(1, Ordering::Release);
     }
 
     /// Every robot, sorted by name.

@@ -67,6 +67,17 @@ impl Robot {
                 ),
             ));
         }
+        // The common case, every value good, in one pass of comparisons (see
+        // `batch_within_bounds`: it accepts exactly what `check_value` does).
+        let to_rad = opts.angle_unit.to_rad();
+        let good = |(x, j): (&f64, &Joint)| {
+            let [scale, lo, hi] = bounds(j, to_rad, opts.check_limits);
+            let y = x * scale;
+            (y >= lo) & (y <= hi)
+        };
+        if q.iter().zip(self.joints()).all(good) {
+            return Ok(JointVector::new(self, q, to_rad));
+        }
         for (i, (x, j)) in q.iter().zip(self.joints()).enumerate() {
             if let Some(mut message) = self.check_value(*x, j, opts) {
                 if x.abs() > std::f64::consts::PI && self.looks_like_degrees(q, opts) {
@@ -215,19 +226,7 @@ impl Robot {
         let bounds: Vec<[f64; 3]> = self
             .joints()
             .iter()
-            .map(|j| {
-                let (scale, max) = match j.kind {
-                    JointKind::Revolute => (to_rad, MAX_REVOLUTE_RAD),
-                    JointKind::Prismatic => (1.0, MAX_MAGNITUDE),
-                    // Not a movable joint; checked as finite (and limits) only.
-                    JointKind::Fixed => (1.0, f64::MAX),
-                };
-                let (lo, hi) = j
-                    .limits
-                    .filter(|_| opts.check_limits)
-                    .unwrap_or((-max, max));
-                [scale, lo.max(-max), hi.min(max)]
-            })
+            .map(|j| bounds(j, to_rad, opts.check_limits))
             .collect();
         // The bounds repeated for 8 configurations, as three flat rows: the
         // values then pass in runs of `8 × dof` against them, one flat loop
@@ -392,6 +391,23 @@ impl<'a> JointBatch<'a> {
     }
 }
 
+/// The interval `[lo, hi]` a joint's value times `scale` must lie in to
+/// pass [`Robot::check_value`]: `[scale, lo, hi]`, with `scale` the request's
+/// to-rad factor for a revolute joint (1 otherwise), the magnitude bound and,
+/// when checked, the joint's limits. NaN and ±∞ fall outside every such
+/// interval.
+#[inline]
+fn bounds(j: &Joint, to_rad: f64, check_limits: bool) -> [f64; 3] {
+    let (scale, max) = match j.kind {
+        JointKind::Revolute => (to_rad, MAX_REVOLUTE_RAD),
+        JointKind::Prismatic => (1.0, MAX_MAGNITUDE),
+        // Not a movable joint; checked as finite (and limits) only.
+        JointKind::Fixed => (1.0, f64::MAX),
+    };
+    let (lo, hi) = j.limits.filter(|_| check_limits).unwrap_or((-max, max));
+    [scale, lo.max(-max), hi.min(max)]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -481,6 +497,11 @@ mod tests {
                             robot.batch_within_bounds(&q, &opts),
                             slow,
                             "joint {j} x {x:e} {unit:?} {check_limits}"
+                        );
+                        assert_eq!(
+                            robot.check_joints(&q, &opts).is_ok(),
+                            slow,
+                            "one configuration: joint {j} x {x:e} {unit:?} {check_limits}"
                         );
                         // Among 10 good configurations: in a whole run of
                         // eight (position 3) and in the tail (position 9).

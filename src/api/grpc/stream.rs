@@ -16,7 +16,7 @@ use super::{GrpcService, oversize, pb, status, streams};
 use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{AngleUnit, BatchPoses, StreamOp};
-use crate::service::StreamAnswer;
+use crate::service::{RobotCache, StreamAnswer};
 use crate::telemetry::Protocol;
 use kinserve_api::{ConfigurationBatch, packed_to_pb, pose_to_pb};
 
@@ -29,9 +29,10 @@ impl GrpcService {
         &self,
         msg: pb::StreamForwardKinematicsRequest,
         client: ClientId,
+        robots: &mut RobotCache,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let id = msg.id;
-        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg, client))
+        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg, client, robots))
             .catch_unwind()
             .await
             .map_err(|panic| {
@@ -56,13 +57,14 @@ impl GrpcService {
         &self,
         msg: pb::StreamForwardKinematicsRequest,
         client: ClientId,
+        robots: &mut RobotCache,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         // Many configurations: refused over the batch limit before they are
         // copied, as ForwardKinematicsBatch refuses them.
         if !msg.configurations.is_empty() || msg.packed_configurations.is_some() {
             self.service.check_batch_size(msg.configuration_count())?;
         }
-        let entry = self.service.robot_at(&msg.robot, "robot")?;
+        let entry = self.service.robot_cached(robots, &msg.robot, "robot")?;
         msg.check_joint_count(entry.robot.dof())?;
         let op = StreamOp::try_from(msg)?;
         let unit = pb::LengthUnit::from(entry.robot.length_unit()) as i32;
@@ -184,6 +186,7 @@ impl GrpcService {
         // token is one mutex every stream of every worker would take per
         // message.
         let shutdown = self.shutdown.child_token();
+        let mut robots = RobotCache::default();
         loop {
             if shutdown.is_cancelled() {
                 return End::Closed(closing());
@@ -211,7 +214,7 @@ impl GrpcService {
             };
             // A bug (panic) while answering ends the stream with INTERNAL, not
             // with a clean end of stream the client would take for success.
-            let resp = match self.stream_reply(msg, client).await {
+            let resp = match self.stream_reply(msg, client, &mut robots).await {
                 Ok(resp) => resp,
                 Err(e) => return End::Status(Status::from(e)),
             };

@@ -21,7 +21,7 @@ use crate::api::pose_format::{self, PoseFormat};
 use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{LengthUnit, StreamOp};
-use crate::service::StreamAnswer;
+use crate::service::{RobotCache, StreamAnswer};
 use crate::telemetry::{Protocol, StreamGuard};
 
 /// Close code 1001 "going away" (server shutting down or idle stream).
@@ -116,7 +116,16 @@ pub async fn stream(
         .max_frame_size(max)
         .on_upgrade(move |socket| {
             tracing::Instrument::instrument(
-                run(socket, state, Target { name, client }, permit),
+                run(
+                    socket,
+                    state,
+                    Target {
+                        name,
+                        client,
+                        robots: RobotCache::default(),
+                    },
+                    permit,
+                ),
                 stream,
             )
         }))
@@ -158,9 +167,11 @@ enum Step {
 struct Target {
     name: String,
     client: ClientId,
+    /// The robot's entry, looked up once per registry change.
+    robots: RobotCache,
 }
 
-async fn step(state: &AppState, target: &Target, msg: Message) -> Step {
+async fn step(state: &AppState, target: &mut Target, msg: Message) -> Step {
     match msg {
         Message::Text(t) => Step::Reply(answer(state, target, t.as_bytes()).await),
         Message::Binary(_) => Step::Reply(error_reply(
@@ -174,7 +185,7 @@ async fn step(state: &AppState, target: &Target, msg: Message) -> Step {
     }
 }
 
-async fn run(mut socket: WebSocket, state: AppState, target: Target, permit: StreamPermit) {
+async fn run(mut socket: WebSocket, state: AppState, mut target: Target, permit: StreamPermit) {
     let _permit = permit;
     let _stream = StreamGuard::open(Protocol::WebSocket);
     let shutdown = state.shutdown.clone();
@@ -206,7 +217,7 @@ async fn run(mut socket: WebSocket, state: AppState, target: Target, permit: Str
             Message::Ping(_) | Message::Pong(_) => deadline,
             _ => Instant::now() + idle,
         };
-        match answer_pending(&mut socket, &state, &target, first, send_by).await {
+        match answer_pending(&mut socket, &state, &mut target, first, send_by).await {
             Some(true) => deadline = Instant::now() + idle,
             Some(false) => {}
             None => return,
@@ -222,7 +233,7 @@ async fn run(mut socket: WebSocket, state: AppState, target: Target, permit: Str
 async fn answer_pending(
     socket: &mut WebSocket,
     state: &AppState,
-    target: &Target,
+    target: &mut Target,
     first: Message,
     send_by: Instant,
 ) -> Option<bool> {
@@ -295,7 +306,7 @@ fn ws_joints(r: &mut WsRequest) -> &mut Vec<f64> {
 /// The reply to one text message: parsed into the protocol-neutral
 /// [`StreamOp`], answered by [`Service::stream_step`](crate::service::Service::stream_step)
 /// (the same step as the gRPC stream's), written as JSON.
-async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
+async fn answer(state: &AppState, target: &mut Target, bytes: &[u8]) -> String {
     let mut req: WsRequest = match parse_object_joints(bytes, ws_joints) {
         Ok(r) => r,
         Err(e) => {
@@ -315,7 +326,10 @@ async fn answer(state: &AppState, target: &Target, bytes: &[u8]) -> String {
         Ok(op) => op,
         Err(e) => return error_reply(&id, &e.into()),
     };
-    let entry = match state.service.robot(&target.name) {
+    let entry = match state
+        .service
+        .robot_cached(&mut target.robots, &target.name, "name")
+    {
         Ok(e) => e,
         Err(e) => return error_reply(&id, &e),
     };

@@ -180,6 +180,68 @@ async fn backpressure_reaches_the_sender_when_nobody_reads() {
     stall_then_read(&app, 200_000, id_only_request, false).await;
 }
 
+/// A stream's messages see the registry as it is when each is answered: a
+/// robot replaced, deleted and registered again between two messages (the
+/// stream keeps the entry it looked up only while the registry is unchanged).
+#[tokio::test]
+async fn a_robot_replaced_or_deleted_mid_stream_is_seen_by_the_next_message() {
+    let app = spawn_app().await;
+    let url = format!("{}/v1/robots/temp", app.http);
+    assert_eq!(
+        app.post("/v1/robots", &planar_model("temp")).await.status(),
+        201
+    );
+    let mut c = app.grpc_client().await;
+    let (tx, mut rx) = open_stream(&mut c, 4).await;
+    let mut ask = async |id: u64, robot: &str, joints: &[f64]| {
+        tx.send(stream_request(id, robot, joints, None))
+            .await
+            .unwrap();
+        let reply = rx.message().await.unwrap().unwrap();
+        assert_eq!(reply.id, id);
+        match reply.result {
+            Some(StreamResult::Pose(p)) => Ok(p.position.unwrap().x),
+            Some(StreamResult::Error(e)) => Err(e.code),
+            other => panic!("message {id}: {other:?}"),
+        }
+    };
+    let tol = 1e-12;
+    assert!(
+        (ask(1, "temp", &[0.0, 0.0]).await.unwrap() - 0.8).abs() < tol,
+        "a = 0.5 + 0.3"
+    );
+    assert!(
+        (ask(2, "temp", &[0.0, 0.0]).await.unwrap() - 0.8).abs() < tol,
+        "unchanged"
+    );
+    let mut longer = planar_model("temp");
+    longer["links"][0]["a"] = 0.9.into();
+    let r = app.client.put(&url).json(&longer).send().await.unwrap();
+    assert!(r.status().is_success(), "{}", r.status());
+    assert!(
+        (ask(3, "temp", &[0.0, 0.0]).await.unwrap() - 1.2).abs() < tol,
+        "replaced: a = 0.9 + 0.3"
+    );
+    let r = app.client.delete(&url).send().await.unwrap();
+    assert_eq!(r.status(), 204);
+    assert_eq!(
+        ask(4, "temp", &[0.0, 0.0]).await,
+        Err(Code::NotFound as i32),
+        "deleted"
+    );
+    assert_eq!(
+        app.post("/v1/robots", &planar_model("temp")).await.status(),
+        201
+    );
+    assert!(
+        (ask(5, "temp", &[0.0, 0.0]).await.unwrap() - 0.8).abs() < tol,
+        "registered again"
+    );
+    // Another robot on the same stream, then this one again.
+    assert!(ask(6, "puma560", &[0.0; 6]).await.is_ok());
+    assert!((ask(7, "temp", &[0.0, 0.0]).await.unwrap() - 0.8).abs() < tol);
+}
+
 fn small_fk_request(i: u64) -> pb::StreamForwardKinematicsRequest {
     let q = [0.001 * (i % 1000) as f64, 0.0, 0.0, 0.0, 0.0, 0.0];
     stream_request(i, "puma560", &q, None)
