@@ -10,11 +10,11 @@ use subtle::ConstantTimeEq;
 use crate::compute::{ClientId, ComputePool, cancelled, share_of, stopped};
 use crate::error::{Error, Result};
 use crate::kinematics::Transform;
-use crate::model::operations::{ConfigAnswers, ConfigOp, ConfigSpec};
+use crate::model::operations::{ConfigAnswers, ConfigOp, ConfigOps, ConfigSpec};
 use crate::model::{
     BatchPoses, FkBatchSpec, FkSpec, IkAnswer, IkBatchSpec, IkPathAnswer, IkPathSpec, IkSpec,
     JacobianAnswer, JacobianBatchSpec, JacobianSpec, JointBatch, LengthUnit, ModelLimits,
-    PoseFormat, Robot, RobotSpec, StreamOp,
+    PoseFormat, ReferenceFrame, Robot, RobotSpec, StreamOp,
 };
 use crate::registry::{ClosedFormResult, Condition, Entry, Origin, PutMode, Registry};
 
@@ -867,21 +867,34 @@ impl Service {
                 })
             }
             StreamOp::Fk { fk, jacobian, ops } => {
-                let q = entry.robot.check_joints(&fk.joints, &fk.options)?;
-                let (pose, frames) = q.fk_with_frames(fk.frames);
-                let jacobian = jacobian.map(|frame| q.jacobian(frame));
-                // With the Jacobian, the pose is the Jacobian's (as `…/jacobian` answers it).
-                let pose = jacobian.as_ref().map_or(pose, |j| j.pose);
-                let ops = ops.compute(&q);
-                entry.count_poses(protocol, 1);
-                Ok(StreamAnswer::Fk {
-                    fk: FkAnswer { pose, frames },
-                    pose_format: fk.pose_format,
-                    jacobian,
-                    ops,
-                })
+                Self::stream_fk(&entry, &fk, jacobian, ops, protocol)
             }
         }
+    }
+
+    /// The FK step of [`Service::stream_step`] (one configuration, with the
+    /// Jacobian and the operations on it when asked for): computed at once,
+    /// so a stream may answer its FK messages without a future.
+    pub fn stream_fk(
+        entry: &Entry,
+        fk: &FkSpec,
+        jacobian: Option<ReferenceFrame>,
+        ops: ConfigOps,
+        protocol: crate::telemetry::Protocol,
+    ) -> Result<StreamAnswer> {
+        let q = entry.robot.check_joints(&fk.joints, &fk.options)?;
+        let (pose, frames) = q.fk_with_frames(fk.frames);
+        let jacobian = jacobian.map(|frame| q.jacobian(frame));
+        // With the Jacobian, the pose is the Jacobian's (as `…/jacobian` answers it).
+        let pose = jacobian.as_ref().map_or(pose, |j| j.pose);
+        let ops = ops.compute(&q);
+        entry.count_poses(protocol, 1);
+        Ok(StreamAnswer::Fk {
+            fk: FkAnswer { pose, frames },
+            pose_format: fk.pose_format,
+            jacobian,
+            ops,
+        })
     }
 }
 

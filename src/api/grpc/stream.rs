@@ -16,7 +16,7 @@ use super::{GrpcService, oversize, pb, status, streams};
 use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{AngleUnit, BatchPoses, StreamOp};
-use crate::service::{RobotCache, StreamAnswer};
+use crate::service::{RobotCache, Service, StreamAnswer};
 use crate::telemetry::Protocol;
 use kinserve_api::{ConfigurationBatch, packed_to_pb, pose_to_pb};
 
@@ -25,6 +25,10 @@ impl GrpcService {
     /// operations on one configuration when asked for), FK of many
     /// configurations, IK or a path. `Err` only for a panic (the stream then
     /// ends INTERNAL).
+    ///
+    /// FK of one configuration, nearly every message of a busy stream, is
+    /// answered at once: no future of the other operations is built or
+    /// moved for it (those moves were a tenth of a message's instructions).
     async fn stream_reply(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
@@ -32,12 +36,19 @@ impl GrpcService {
         robots: &mut RobotCache,
     ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let id = msg.id;
-        let answer = std::panic::AssertUnwindSafe(self.stream_answer(msg, client, robots))
-            .catch_unwind()
-            .await
-            .map_err(|panic| {
-                super::super::panic_to_error(panic.as_ref(), "gRPC FK stream handler")
-            })?;
+        let panicked = |panic: Box<dyn std::any::Any + Send>| {
+            super::super::panic_to_error(panic.as_ref(), "gRPC FK stream handler")
+        };
+        let now = std::panic::AssertUnwindSafe(|| self.stream_answer_now(msg, robots));
+        let answer = match std::panic::catch_unwind(now).map_err(panicked)? {
+            Now::Answered(answer) => answer,
+            Now::Later(prepared) => {
+                std::panic::AssertUnwindSafe(self.stream_answer_later(*prepared, client))
+                    .catch_unwind()
+                    .await
+                    .map_err(panicked)?
+            }
+        };
         Ok(match answer {
             Ok(mut resp) => {
                 resp.id = id;
@@ -53,12 +64,30 @@ impl GrpcService {
         })
     }
 
-    async fn stream_answer(
+    /// A message checked and converted; FK of one configuration answered.
+    fn stream_answer_now(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
-        client: ClientId,
         robots: &mut RobotCache,
-    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+    ) -> Now {
+        let prepared = match self.prepare(msg, robots) {
+            Ok(p) => p,
+            Err(e) => return Now::Answered(Err(e)),
+        };
+        match prepared.op {
+            StreamOp::Fk { fk, jacobian, ops } => Now::Answered(
+                Service::stream_fk(&prepared.entry, &fk, jacobian, ops, Protocol::Grpc)
+                    .map(|a| stream_response(a, prepared.unit, prepared.path_units)),
+            ),
+            _ => Now::Later(Box::new(prepared)),
+        }
+    }
+
+    fn prepare(
+        &self,
+        msg: pb::StreamForwardKinematicsRequest,
+        robots: &mut RobotCache,
+    ) -> Result<Prepared, Error> {
         // Many configurations: refused over the batch limit before they are
         // copied, as ForwardKinematicsBatch refuses them.
         if !msg.configurations.is_empty() || msg.packed_configurations.is_some() {
@@ -73,12 +102,43 @@ impl GrpcService {
             StreamOp::IkPath(p) => (entry.robot.name().to_string(), p.angle_unit),
             _ => (String::new(), AngleUnit::Rad),
         };
+        Ok(Prepared {
+            entry,
+            op,
+            unit,
+            path_units,
+        })
+    }
+
+    /// The operations that run on the compute pool (IK, paths, FK of many
+    /// configurations), under `client`'s share.
+    async fn stream_answer_later(
+        &self,
+        p: Prepared,
+        client: ClientId,
+    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
         let answer = self
             .service
-            .stream_step(entry, op, Protocol::Grpc, client)
+            .stream_step(p.entry, p.op, Protocol::Grpc, client)
             .await?;
-        Ok(stream_response(answer, unit, path_units))
+        Ok(stream_response(answer, p.unit, p.path_units))
     }
+}
+
+/// A stream message ready to answer: its robot, operation and units.
+struct Prepared {
+    entry: std::sync::Arc<crate::registry::Entry>,
+    op: StreamOp,
+    unit: i32,
+    path_units: (String, AngleUnit),
+}
+
+/// What [`GrpcService::stream_answer_now`] did with a message.
+enum Now {
+    /// Answered (or refused).
+    Answered(Result<pb::StreamForwardKinematicsResponse, Error>),
+    /// To be answered on the compute pool.
+    Later(Box<Prepared>),
 }
 
 /// A stream answer as its message (Pose messages for `full`, PackedPoses for
