@@ -15,8 +15,9 @@
 //!
 //! Owns the JSON answer bodies of the REST handlers (whole, or streamed for
 //! large batches and paths); which answers stream is decided here by size. Depends on
-//! the DTOs, [`super::buffered`] (frame size, [`Holds`]) and
-//! [`crate::api::pose_format`], nothing above the adapter.
+//! the DTOs, [`super::buffered`] (frame size, [`Holds`]),
+//! [`crate::api::pose_format`] and [`crate::api::pose_json`] (the poses'
+//! bytes), nothing above the adapter.
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
