@@ -99,7 +99,7 @@ fn full(out: &mut Vec<u8>, t: &Transform) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::api::pose_format::{FormattedPose, Many};
+    use crate::api::pose_format::{Many, serde_reference};
 
     /// Transforms whose numbers take every shape the formatter writes:
     /// exact zeros of both signs, integers, short and 17-digit decimals,
@@ -129,7 +129,7 @@ mod tests {
             for t in transforms() {
                 let mut fast = Vec::new();
                 pose(&mut fast, format, &t);
-                let reference = serde_json::to_vec(&FormattedPose::new(format, t)).unwrap();
+                let reference = serde_reference(format, t);
                 assert_eq!(
                     String::from_utf8(fast).unwrap(),
                     String::from_utf8(reference).unwrap(),
