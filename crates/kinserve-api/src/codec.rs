@@ -17,7 +17,8 @@
 //! `Vec` with room for [`JOINTS_RESERVED`] values, where prost would grow it
 //! from nothing twice for a 6-joint arm: about 960 in all.
 //!
-//! Depends on tonic and prost only.
+//! Depends on tonic, prost and two of the crate root's generated messages
+//! (the FK requests, named only to give their joints room).
 
 use std::marker::PhantomData;
 
