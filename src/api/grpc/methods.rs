@@ -6,8 +6,8 @@
 
 use tonic::{Request, Response, Status, Streaming};
 
+use super::fk_stream::FkReplies;
 use super::pb::kinematics_service_server::KinematicsService;
-use super::stream::{End, FkStream, close_if_stuck};
 use super::{GrpcService, authorization, pb, streams};
 use crate::error::Error;
 use crate::model::operations;
@@ -277,7 +277,7 @@ impl KinematicsService for GrpcService {
         )))
     }
 
-    type StreamForwardKinematicsStream = FkStream;
+    type StreamForwardKinematicsStream = FkReplies;
 
     async fn stream_forward_kinematics(
         &self,
@@ -294,26 +294,12 @@ impl KinematicsService for GrpcService {
                 Status::from(e)
             })?;
         let inbound = req.into_inner();
-        let (replies, outbound) = streams::channel();
-        let this = self.clone();
-        tokio::spawn(async move {
-            // The stream's budget slot, never a request permit: open streams
-            // do not take from the requests in flight.
-            let stream = StreamGuard::open(Protocol::Grpc);
-            let end = this.pump(inbound, &replies, client).await;
-            drop((permit, stream));
-            match end {
-                End::Quiet => {}
-                End::Status(status) => {
-                    replies.end(status);
-                }
-                End::Closed(status) => {
-                    let done = replies.end(status);
-                    close_if_stuck(done, connection).await;
-                }
-            }
-        });
-        Ok(Response::new(Box::pin(outbound)))
+        // The stream's budget slot, never a request permit: open streams do
+        // not take from the requests in flight.
+        let held = (permit, StreamGuard::open(Protocol::Grpc));
+        Ok(Response::new(
+            self.fk_replies(inbound, client, held, connection),
+        ))
     }
 
     async fn jacobian(

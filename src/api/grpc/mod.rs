@@ -1,6 +1,7 @@
 //! The gRPC adapter (tonic): `kinematics.v1.KinematicsService`, health and
 //! reflection, split by role: `server` sets up the listener and its layers,
-//! `methods` answers each call, `stream` runs the bidirectional FK stream;
+//! `methods` answers each call, `fk_stream` runs the bidirectional FK stream
+//! and `stream` answers its messages;
 //! `status` maps [`Error`] to gRPC statuses. The generated types and the
 //! conversions to and from the model's requests live in `kinserve-api`
 //! (re-exported here as [`pb`]).
@@ -8,6 +9,7 @@
 //! Depends on the service, the budgets and `kinserve-api`; nothing here is REST.
 
 mod buffered;
+mod fk_stream;
 mod grpc_metrics;
 mod methods;
 mod oversize;

@@ -1,18 +1,17 @@
-//! The bidirectional FK stream: the task that reads a stream's messages in
-//! order, answers each through the one stream step shared with the WebSocket
-//! ([`Service::stream_step`](crate::service::Service::stream_step)) and queues
-//! its reply with bounded buffering, and how the stream ends (idle timeout,
-//! shutdown, a stuck client window). Depends on the service, `streams` and
+//! The answers of the bidirectional FK stream: each message checked,
+//! answered through the one stream step shared with the WebSocket
+//! ([`Service::stream_fk`](crate::service::Service::stream_fk), and
+//! [`Service::stream_step`](crate::service::Service::stream_step) on the
+//! compute pool) and turned into its reply message. How a call reads its
+//! messages and ends is `fk_stream`'s. Depends on the service and
 //! `kinserve-api`'s conversions.
 
+use std::future::Future;
 use std::pin::Pin;
 
 use futures_util::FutureExt;
-use tokio_stream::Stream;
-use tokio_util::sync::CancellationToken;
-use tonic::{Status, Streaming};
 
-use super::{GrpcService, oversize, pb, status, streams};
+use super::{GrpcService, pb, status};
 use crate::compute::ClientId;
 use crate::error::Error;
 use crate::model::{AngleUnit, BatchPoses, StreamOp};
@@ -20,47 +19,74 @@ use crate::service::{RobotCache, Service, StreamAnswer};
 use crate::telemetry::Protocol;
 use kinserve_api::{ConfigurationBatch, packed_to_pb, pose_to_pb};
 
+/// A stream message's answer, or where it is going to come from.
+pub(super) enum Answer {
+    /// Answered now (FK of one configuration, or a refusal).
+    Now(pb::StreamForwardKinematicsResponse),
+    /// To be answered on the compute pool (IK, paths, FK of many
+    /// configurations): the future gives the reply, `Err` only for a panic.
+    Later(LaterReply),
+}
+
+/// The reply of a message answered on the compute pool.
+pub(super) type LaterReply =
+    Pin<Box<dyn Future<Output = Result<pb::StreamForwardKinematicsResponse, Error>> + Send>>;
+
+/// `answer` as the message `id`'s reply: the response, or the error in it.
+fn reply_of(
+    id: u64,
+    answer: Result<pb::StreamForwardKinematicsResponse, Error>,
+) -> pb::StreamForwardKinematicsResponse {
+    match answer {
+        Ok(mut resp) => {
+            resp.id = id;
+            resp
+        }
+        Err(e) => pb::StreamForwardKinematicsResponse {
+            id,
+            result: Some(pb::stream_forward_kinematics_response::Result::Error(
+                status::to_rpc_status(&e),
+            )),
+            ..Default::default()
+        },
+    }
+}
+
+/// A panic while answering, as the error that ends the stream (INTERNAL).
+fn panicked(panic: Box<dyn std::any::Any + Send>) -> Error {
+    super::super::panic_to_error(panic.as_ref(), "gRPC FK stream handler")
+}
+
 impl GrpcService {
-    /// The response to one stream message: FK (with the Jacobian and the
-    /// operations on one configuration when asked for), FK of many
-    /// configurations, IK or a path. `Err` only for a panic (the stream then
-    /// ends INTERNAL).
+    /// The answer to one stream message: FK (with the Jacobian and the
+    /// operations on one configuration when asked for) at once; FK of many
+    /// configurations, IK or a path as a future on the compute pool, under
+    /// `client`'s share. `Err` only for a panic (the stream then ends INTERNAL).
     ///
     /// FK of one configuration, nearly every message of a busy stream, is
-    /// answered at once: no future of the other operations is built or
-    /// moved for it (those moves were about 8 % of a message's instructions).
-    async fn stream_reply(
+    /// answered without building or moving a future of the other operations
+    /// (those moves were about 8 % of a message's instructions).
+    pub(super) fn stream_answer(
         &self,
         msg: pb::StreamForwardKinematicsRequest,
         client: ClientId,
         robots: &mut RobotCache,
-    ) -> Result<pb::StreamForwardKinematicsResponse, Error> {
+    ) -> Result<Answer, Error> {
         let id = msg.id;
-        let panicked = |panic: Box<dyn std::any::Any + Send>| {
-            super::super::panic_to_error(panic.as_ref(), "gRPC FK stream handler")
-        };
         let now = std::panic::AssertUnwindSafe(|| self.stream_answer_now(msg, robots));
-        let answer = match std::panic::catch_unwind(now).map_err(panicked)? {
-            Now::Answered(answer) => answer,
+        Ok(match std::panic::catch_unwind(now).map_err(panicked)? {
+            Now::Answered(answer) => Answer::Now(reply_of(id, answer)),
             Now::Later(prepared) => {
-                std::panic::AssertUnwindSafe(self.stream_answer_later(*prepared, client))
-                    .catch_unwind()
-                    .await
-                    .map_err(panicked)?
+                let this = self.clone();
+                Answer::Later(Box::pin(async move {
+                    let later = this.stream_answer_later(*prepared, client);
+                    let answer = std::panic::AssertUnwindSafe(later)
+                        .catch_unwind()
+                        .await
+                        .map_err(panicked)?;
+                    Ok(reply_of(id, answer))
+                }))
             }
-        };
-        Ok(match answer {
-            Ok(mut resp) => {
-                resp.id = id;
-                resp
-            }
-            Err(e) => pb::StreamForwardKinematicsResponse {
-                id,
-                result: Some(pb::stream_forward_kinematics_response::Result::Error(
-                    status::to_rpc_status(&e),
-                )),
-                ..Default::default()
-            },
         })
     }
 
@@ -212,124 +238,3 @@ fn stream_response(
         }
     }
 }
-
-impl GrpcService {
-    /// Answers a stream's messages in order until it ends; returns how it ends.
-    ///
-    /// A stream that makes no progress in either direction for the idle
-    /// timeout is closed: waiting for the client's next message and waiting
-    /// for it to take a reply (its receive window closed: the reply queue
-    /// stays full) both count as no progress.
-    pub(super) async fn pump(
-        &self,
-        mut inbound: Streaming<pb::StreamForwardKinematicsRequest>,
-        replies: &streams::Replies<pb::StreamForwardKinematicsResponse>,
-        client: ClientId,
-    ) -> End {
-        let idle = self.settings.stream_idle_timeout;
-        let idle_status = || {
-            Status::from(Error::RequestTimeout {
-                detail: format!(
-                    "stream idle timeout: no message from the client and no reply taken for {idle:?}"
-                ),
-            })
-        };
-        let closing = || {
-            Status::from(Error::Unavailable {
-                detail: "server shutting down".into(),
-            })
-        };
-        // Until the first message, the (shorter) first-message timeout.
-        let mut wait = idle.min(self.settings.stream_first_message_timeout);
-        // The stream's own token, cancelled with the server's: checking it
-        // per message locks only this stream's node, where the server's
-        // token is one mutex every stream of every worker would take per
-        // message.
-        let shutdown = self.shutdown.child_token();
-        let mut robots = RobotCache::default();
-        loop {
-            if shutdown.is_cancelled() {
-                return End::Closed(closing());
-            }
-            // A message already received is taken at once; only when none is
-            // there does the task wait (shutdown, cancel, idle timeout). One
-            // poll per message instead of three registrations.
-            let ready = inbound.message().now_or_never();
-            let next = match ready {
-                Some(r) => Ok(r),
-                None => tokio::select! {
-                    _ = shutdown.cancelled() => return End::Closed(closing()),
-                    _ = replies.closed() => return End::Quiet, // client cancelled
-                    r = tokio::time::timeout(wait, inbound.message()) => r,
-                },
-            };
-            wait = idle;
-            let msg = match next {
-                Err(_) => return End::Closed(idle_status()),
-                Ok(Ok(Some(m))) => m,
-                Ok(Ok(None)) => return End::Quiet,
-                // Undecodable or oversized message (or the buffered bytes
-                // budget spent): report it and end (the transport state is unknown).
-                Ok(Err(status)) => return End::Status(oversize::remap_status(status)),
-            };
-            // A bug (panic) while answering ends the stream with INTERNAL, not
-            // with a clean end of stream the client would take for success.
-            let resp = match self.stream_reply(msg, client, &mut robots).await {
-                Ok(resp) => resp,
-                Err(e) => return End::Status(Status::from(e)),
-            };
-            // Queued at once when there is room; else waits while the client
-            // reads slowly (bounded buffering, end-to-end flow control), but
-            // not longer than the idle timeout.
-            let resp = match replies.try_send(resp) {
-                Ok(()) => continue,
-                Err(None) => return End::Quiet,
-                Err(Some(resp)) => resp,
-            };
-            let sent = tokio::select! {
-                _ = shutdown.cancelled() => return End::Closed(closing()),
-                r = tokio::time::timeout(idle, replies.send(resp)) => r,
-            };
-            match sent {
-                Ok(true) => {}
-                Ok(false) => return End::Quiet,
-                Err(_) => return End::Closed(idle_status()),
-            }
-        }
-    }
-}
-
-/// How a stream's task ended.
-pub(super) enum End {
-    /// Cleanly, or the client went away: nothing to send.
-    Quiet,
-    /// With a status for the client.
-    Status(Status),
-    /// Closed by the server (idle timeout, shutdown) while the client may
-    /// not be taking its replies.
-    Closed(Status),
-}
-
-/// After the server closed a stream (idle timeout, shutdown): if its response is not done within
-/// [`streams::STUCK_GRACE`] (the HTTP/2 layer still waits for the client's
-/// window to send a reply or the final status), closes its connection, the
-/// only way to end that stream (see `streams`). A client that reads gets
-/// the final status at once and keeps its connection.
-pub(super) async fn close_if_stuck(
-    done: CancellationToken,
-    connection: Option<streams::GrpcConnInfo>,
-) {
-    let finished = tokio::time::timeout(streams::STUCK_GRACE, done.cancelled()).await;
-    if finished.is_err()
-        && let Some(c) = connection
-    {
-        tracing::info!(
-            "closing a gRPC connection: a closed stream on it stays blocked on the client's receive window"
-        );
-        c.close.cancel();
-    }
-}
-
-pub(super) type FkStream = Pin<
-    Box<dyn Stream<Item = Result<pb::StreamForwardKinematicsResponse, Status>> + Send + 'static>,
->;

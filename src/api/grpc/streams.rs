@@ -1,7 +1,5 @@
 //! The plumbing of `StreamForwardKinematics`: which connection a call came
-//! on (for the per-connection stream budget, and to close it), and the
-//! outbound half of a stream, which can end with a status even while the
-//! client does not read.
+//! on (for the per-connection stream budget, and to close it).
 //!
 //! Why a connection may have to be closed: once the HTTP/2 layer (hyper)
 //! holds a reply for a stream whose client keeps its receive window closed,
@@ -25,10 +23,9 @@ use tokio::net::TcpStream;
 
 use crate::tls::{ClientCert, MaybeTls};
 
-use tokio::sync::{OwnedSemaphorePermit, mpsc, oneshot};
+use tokio::sync::{OwnedSemaphorePermit, mpsc};
 use tokio_stream::Stream;
-use tokio_util::sync::{CancellationToken, DropGuard, WaitForCancellationFutureOwned};
-use tonic::Status;
+use tokio_util::sync::{CancellationToken, WaitForCancellationFutureOwned};
 use tonic::transport::server::Connected;
 
 use crate::api::budget::{ConnectionSlots, ConnectionStreams, accept_error};
@@ -116,13 +113,6 @@ fn handshaken(
     });
     tokio_stream::wrappers::ReceiverStream::new(rx).map(Ok)
 }
-
-/// Replies of one stream queued for the client, beyond the one its task is
-/// holding: what a client that does not read holds (restoring 16 from 1 gave back
-/// the stream rate: one reply per wake-up of the connection task cost 4.6 ×; at
-/// most `--max-streams` streams × 16 replies are held, e.g. 64 × 16 × 45 KB
-/// for every frame of a 256-row model).
-pub const REPLY_BUFFER: usize = 16;
 
 /// How long a stream closed for idleness while its client did not read may
 /// take to finish before its connection is closed.
@@ -228,92 +218,5 @@ impl AsyncWrite for GrpcConn {
 
     fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
         Pin::new(&mut self.get_mut().tcp).poll_shutdown(cx)
-    }
-}
-
-/// The sending half of a stream, used by its task.
-pub struct Replies<T> {
-    tx: mpsc::Sender<Result<T, Status>>,
-    last: Option<oneshot::Sender<Status>>,
-    done: CancellationToken,
-}
-
-/// The outbound stream tonic sends: the replies, then the final status (if
-/// the task ended with one) once every queued reply went out.
-pub struct Outbound<T> {
-    rx: mpsc::Receiver<Result<T, Status>>,
-    last: Option<oneshot::Receiver<Status>>,
-    /// Cancels [`Replies::done`] when the HTTP layer drops the response.
-    _done: DropGuard,
-}
-
-/// A stream's two halves, with [`REPLY_BUFFER`] replies of room.
-pub fn channel<T>() -> (Replies<T>, Outbound<T>) {
-    let (tx, rx) = mpsc::channel(REPLY_BUFFER);
-    let (last_tx, last_rx) = oneshot::channel();
-    let done = CancellationToken::new();
-    (
-        Replies {
-            tx,
-            last: Some(last_tx),
-            done: done.clone(),
-        },
-        Outbound {
-            rx,
-            last: Some(last_rx),
-            _done: done.drop_guard(),
-        },
-    )
-}
-
-impl<T> Replies<T> {
-    /// Queues a reply if there is room now; gives it back when the queue is
-    /// full (`Err(Some)`), `Err(None)` once the client is gone.
-    pub fn try_send(&self, reply: T) -> Result<(), Option<T>> {
-        match self.tx.try_send(Ok(reply)) {
-            Ok(()) => Ok(()),
-            Err(mpsc::error::TrySendError::Full(Ok(reply))) => Err(Some(reply)),
-            Err(_) => Err(None),
-        }
-    }
-
-    /// Queues a reply; waits while the queue is full (the client reads
-    /// slowly). `false` once the client is gone.
-    pub async fn send(&self, reply: T) -> bool {
-        self.tx.send(Ok(reply)).await.is_ok()
-    }
-
-    /// Resolves when the client has gone (cancelled the call).
-    pub async fn closed(&self) {
-        self.tx.closed().await
-    }
-
-    /// Ends the stream with `status` after the queued replies, without
-    /// waiting for the client to read them; returns a token cancelled once
-    /// the response is done (sent, or the stream reset).
-    pub fn end(mut self, status: Status) -> CancellationToken {
-        if let Some(last) = self.last.take() {
-            let _ = last.send(status);
-        }
-        self.done.clone()
-    }
-}
-
-impl<T> Stream for Outbound<T> {
-    type Item = Result<T, Status>;
-
-    fn poll_next(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
-        let this = self.get_mut();
-        match this.rx.poll_recv(cx) {
-            Poll::Ready(None) => {}
-            other => return other,
-        }
-        // The task is done: its final status, if it left one.
-        let Some(last) = this.last.as_mut() else {
-            return Poll::Ready(None);
-        };
-        let status = std::task::ready!(Pin::new(last).poll(cx)).ok();
-        this.last = None;
-        Poll::Ready(status.map(Err))
     }
 }
