@@ -115,6 +115,15 @@ impl Framing {
                 if self.header_seen == 0 {
                     // A new message: the last one was delivered with it.
                     self.earlier += std::mem::take(&mut self.last);
+                    // Its whole header here (nearly always): read at once.
+                    if let Some((&[_, a, b, c, d], tail)) = rest.split_first_chunk::<5>() {
+                        self.length = u64::from(u32::from_be_bytes([a, b, c, d]));
+                        (self.header_seen, self.partial) = (HEADER, usize::from(HEADER));
+                        self.remaining = self.length;
+                        self.finish_if_complete();
+                        rest = tail;
+                        continue;
+                    }
                 }
                 let (byte, tail) = rest.split_at(1);
                 if self.header_seen > 0 {
