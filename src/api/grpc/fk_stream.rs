@@ -264,10 +264,18 @@ async fn watch(
     held: (StreamPermit, StreamGuard),
     connection: Option<streams::GrpcConnInfo>,
 ) {
-    let tick = limits.first.min(limits.idle) / CHECKS_PER_TIMEOUT;
     let mut last = u64::MAX;
     let mut owed_for = Duration::ZERO;
     loop {
+        // Until the call's first poll (`last` is 1 or not read yet), the
+        // first-message limit; then the idle timeout, so a long-lived
+        // stream's watchdog wakes four times per idle timeout.
+        let limit = if last <= 1 || last == u64::MAX {
+            limits.first
+        } else {
+            limits.idle
+        };
+        let tick = limit / CHECKS_PER_TIMEOUT;
         tokio::select! {
             _ = done.cancelled() => return,
             _ = shutdown.cancelled() => break,
@@ -279,11 +287,6 @@ async fn watch(
             continue;
         }
         owed_for += tick;
-        let limit = if polls == 1 {
-            limits.first
-        } else {
-            limits.idle
-        };
         if owed_for >= limit {
             watched.closed.store(true, Ordering::Relaxed);
             break;

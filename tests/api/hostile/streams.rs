@@ -68,7 +68,19 @@ async fn stall_streams_of(
     messages: u64,
     message: fn(u64) -> pb::StreamForwardKinematicsRequest,
 ) -> Stalled {
-    let mut send = h2_connect(url, 0).await;
+    stall_streams_with_window(url, 0, n, messages, message).await
+}
+
+/// [`stall_streams_of`] on a connection whose receive window is `window`
+/// bytes (so the first replies go out before it closes).
+async fn stall_streams_with_window(
+    url: &str,
+    window: u32,
+    n: usize,
+    messages: u64,
+    message: fn(u64) -> pb::StreamForwardKinematicsRequest,
+) -> Stalled {
+    let mut send = h2_connect(url, window).await;
     let mut pending = Vec::new();
     for _ in 0..n {
         send = tokio::time::timeout(EVENTUALLY, send.ready())
@@ -277,6 +289,25 @@ async fn stalled_streams_asking_for_every_frame_of_a_256_row_model_stay_bounded(
 /// stalled one is open, and served once the idle timeout has closed it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
+    // Window 0: the server never gets to send a reply.
+    send_blocked_stream_is_closed(0, 40).await;
+}
+
+/// The same once some replies went out: the window takes a few replies
+/// (about 240 bytes each), then stays closed, with more replies than the
+/// HTTP/2 layer takes ahead (400 messages: two of tonic's 32 KiB chunks), so
+/// the stream has answered and then waits on the window, owed a poll: its
+/// watchdog frees it (it fails when the watchdog takes a stream that was
+/// polled for one that waits on its own timers). With fewer messages the
+/// whole answer and its final status fit in the HTTP/2 layer's send buffer:
+/// the stream is done for the server, its slot freed at the idle timeout,
+/// and the connection stays open with the rest for the client to read.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_grpc_stream_blocked_after_some_replies_is_closed_after_the_idle_timeout() {
+    send_blocked_stream_is_closed(1024, 400).await;
+}
+
+async fn send_blocked_stream_is_closed(window: u32, messages: u64) {
     let app = spawn_app_with(|c| {
         c.stream_idle_timeout = Duration::from_secs(3);
         c.max_streams = 2;
@@ -284,7 +315,8 @@ async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
     })
     .await;
     let checker = Checker::start(&app.http, &app.grpc, &app.ws).await;
-    let stalled = stall_streams(&app.grpc, 1, 40).await;
+    let stalled =
+        stall_streams_with_window(&app.grpc, window, 1, messages, fk_stream_message).await;
     assert_eq!(stalled.accepted.len(), 1);
     assert_eq!(
         probe_stream(&app.grpc).await,
@@ -307,7 +339,16 @@ async fn a_send_blocked_grpc_stream_is_closed_after_the_idle_timeout() {
     // The HTTP/2 layer cannot reset that one stream while it waits for the
     // client's window: its connection is closed (shortly after).
     let (_send, mut resp) = stalled.accepted.into_iter().next().unwrap();
-    let ended = tokio::time::timeout(EVENTUALLY, resp.body_mut().data()).await;
+    let ended = tokio::time::timeout(EVENTUALLY, async {
+        // The replies the window took come first, then the end.
+        loop {
+            match resp.body_mut().data().await {
+                Some(Ok(_)) => continue,
+                other => return other,
+            }
+        }
+    })
+    .await;
     assert!(
         matches!(ended, Ok(None | Some(Err(_)))),
         "the stalled connection is still open: {ended:?}"
