@@ -225,9 +225,10 @@ async fn stalled_grpc_streams_leave_rest_and_unary_calls_served() {
 /// A 256-row model (64 revolute joints, 192 fixed rows) whose every frame is
 /// asked for: 40 messages on each of 1,000 streams (4 connections × 250)
 /// whose client never reads. The issue measured +1.34 GB for this; now at
-/// most `--max-streams` are open, each holding at most its one-reply buffer
-/// (a reply here is 257 poses, about 45 KB encoded), and the server stays far
-/// below the bound while FK is served throughout.
+/// most `--max-streams` are open, each holding at most the replies encoded
+/// ahead of its closed window (what tonic's encoder and the HTTP/2 layer
+/// take ahead: a reply or two here, each 257 poses, about 45 KB encoded), and the server stays far below the bound while FK
+/// is served throughout.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn stalled_streams_asking_for_every_frame_of_a_256_row_model_stay_bounded() {
     let dir = tempfile::tempdir().unwrap();
