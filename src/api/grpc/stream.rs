@@ -72,14 +72,34 @@ impl GrpcService {
         client: ClientId,
         robots: &mut RobotCache,
     ) -> Result<Answer, Error> {
+        let now = std::panic::AssertUnwindSafe(|| self.stream_answer_now(msg, client, robots));
+        std::panic::catch_unwind(now).map_err(panicked)
+    }
+
+    /// A message checked and converted; FK of one configuration answered,
+    /// the other operations handed to a future.
+    fn stream_answer_now(
+        &self,
+        msg: pb::StreamForwardKinematicsRequest,
+        client: ClientId,
+        robots: &mut RobotCache,
+    ) -> Answer {
         let id = msg.id;
-        let now = std::panic::AssertUnwindSafe(|| self.stream_answer_now(msg, robots));
-        Ok(match std::panic::catch_unwind(now).map_err(panicked)? {
-            Now::Answered(answer) => Answer::Now(reply_of(id, answer)),
-            Now::Later(prepared) => {
+        let prepared = match self.prepare(msg, robots) {
+            Ok(p) => p,
+            Err(e) => return Answer::Now(reply_of(id, Err(e))),
+        };
+        match prepared.op {
+            StreamOp::Fk { fk, jacobian, ops } => {
+                let answer =
+                    Service::stream_fk(&prepared.entry, &fk, jacobian, ops, Protocol::Grpc)
+                        .map(|a| stream_response(a, prepared.unit, prepared.path_units));
+                Answer::Now(reply_of(id, answer))
+            }
+            _ => {
                 let this = self.clone();
                 Answer::Later(Box::pin(async move {
-                    let later = this.stream_answer_later(*prepared, client);
+                    let later = this.stream_answer_later(prepared, client);
                     let answer = std::panic::AssertUnwindSafe(later)
                         .catch_unwind()
                         .await
@@ -87,25 +107,6 @@ impl GrpcService {
                     Ok(reply_of(id, answer))
                 }))
             }
-        })
-    }
-
-    /// A message checked and converted; FK of one configuration answered.
-    fn stream_answer_now(
-        &self,
-        msg: pb::StreamForwardKinematicsRequest,
-        robots: &mut RobotCache,
-    ) -> Now {
-        let prepared = match self.prepare(msg, robots) {
-            Ok(p) => p,
-            Err(e) => return Now::Answered(Err(e)),
-        };
-        match prepared.op {
-            StreamOp::Fk { fk, jacobian, ops } => Now::Answered(
-                Service::stream_fk(&prepared.entry, &fk, jacobian, ops, Protocol::Grpc)
-                    .map(|a| stream_response(a, prepared.unit, prepared.path_units)),
-            ),
-            _ => Now::Later(Box::new(prepared)),
         }
     }
 
@@ -157,14 +158,6 @@ struct Prepared {
     op: StreamOp,
     unit: i32,
     path_units: (String, AngleUnit),
-}
-
-/// What [`GrpcService::stream_answer_now`] did with a message.
-enum Now {
-    /// Answered (or refused).
-    Answered(Result<pb::StreamForwardKinematicsResponse, Error>),
-    /// To be answered on the compute pool.
-    Later(Box<Prepared>),
 }
 
 /// A stream answer as its message (Pose messages for `full`, PackedPoses for

@@ -58,21 +58,12 @@ const ONE_CLIENT: [(&str, &str); 2] = [
 /// closed (0): each sends `messages` requests and never reads a reply.
 /// Returns once every stream has its answer head.
 async fn stall_streams(url: &str, n: usize, messages: u64) -> Stalled {
-    stall_streams_of(url, n, messages, fk_stream_message).await
+    stall_streams_with_window(url, 0, n, messages, fk_stream_message).await
 }
 
-/// [`stall_streams`] with the messages `message(id)` makes.
-async fn stall_streams_of(
-    url: &str,
-    n: usize,
-    messages: u64,
-    message: fn(u64) -> pb::StreamForwardKinematicsRequest,
-) -> Stalled {
-    stall_streams_with_window(url, 0, n, messages, message).await
-}
-
-/// [`stall_streams_of`] on a connection whose receive window is `window`
-/// bytes (so the first replies go out before it closes).
+/// [`stall_streams`] with the messages `message(id)` makes, on a connection
+/// whose receive window is `window` bytes (0: closed from the start; more:
+/// the first replies go out before it closes).
 async fn stall_streams_with_window(
     url: &str,
     window: u32,
@@ -254,7 +245,7 @@ async fn stalled_streams_asking_for_every_frame_of_a_256_row_model_stay_bounded(
     let mut held = Vec::new();
     let mut refused = 0;
     for _ in 0..4 {
-        let stalled = stall_streams_of(&server.grpc, 250, 40, |id| {
+        let stalled = stall_streams_with_window(&server.grpc, 0, 250, 40, |id| {
             pb::StreamForwardKinematicsRequest {
                 id,
                 robot: "long256".into(),
